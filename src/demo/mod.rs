@@ -1,0 +1,1 @@
+//! The built-in demo scene: analytic objects rendered by a CPU ray tracer, with exact truth.

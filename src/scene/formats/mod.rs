@@ -1,0 +1,88 @@
+//! Readers and writers for each capture format, all producing and consuming [`Scene`].
+
+pub mod colmap;
+pub mod llff;
+pub mod nerfstudio;
+pub mod ply;
+pub mod rgbd;
+
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+use std::path::Path;
+
+/// Read a scene, finding the format from the path (see [`Scene::load`]).
+pub fn load(path: &Path) -> Result<Scene> {
+    if !path.exists() {
+        return Err(Error::format(path, "no such file or folder"));
+    }
+    let scene = if path.is_file() {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        if name.ends_with(".json") {
+            nerfstudio::read(path)?
+        } else if name == "poses_bounds.npy" {
+            llff::read(path.parent().unwrap_or(Path::new(".")))?
+        } else if name.starts_with("cameras.") {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            colmap::read_model(dir, &colmap::default_images_root(dir))?
+        } else {
+            return Err(Error::format(
+                path,
+                "unknown scene file: expected a transforms*.json, poses_bounds.npy, or a COLMAP cameras.bin/.txt",
+            ));
+        }
+    } else if colmap::detect(path).is_some() {
+        colmap::read_model(path, &colmap::default_images_root(path))?
+    } else if colmap::detect(&path.join("sparse/0")).is_some() {
+        let dir = path.join("sparse/0");
+        colmap::read_model(&dir, &colmap::default_images_root(&dir))?
+    } else if path.join("transforms.json").is_file() {
+        nerfstudio::read(&path.join("transforms.json"))?
+    } else if path.join("transforms_train.json").is_file() {
+        nerfstudio::read(&path.join("transforms_train.json"))?
+    } else if path.join("poses_bounds.npy").is_file() {
+        llff::read(path)?
+    } else if path.join("trajectory.log").is_file() {
+        rgbd::read_redwood(path)?
+    } else {
+        return Err(Error::format(
+            path,
+            "no scene found here: expected a COLMAP model (cameras.bin/.txt or sparse/0/), transforms.json, transforms_train.json, poses_bounds.npy or trajectory.log",
+        ));
+    };
+    check_files_exist(&scene)?;
+    Ok(scene)
+}
+
+/// Every image (and mask/depth, where given) the scene lists must exist.
+pub fn check_files_exist(scene: &Scene) -> Result<()> {
+    for im in &scene.images {
+        if !im.path.is_file() {
+            return Err(Error::format(
+                &scene.source,
+                format!(
+                    "image '{}' is listed but its file {} is missing",
+                    im.name,
+                    im.path.display()
+                ),
+            ));
+        }
+        for (kind, p) in [("mask", &im.mask_path), ("depth", &im.depth_path)] {
+            if let Some(p) = p {
+                if !p.is_file() {
+                    return Err(Error::format(
+                        &scene.source,
+                        format!(
+                            "image '{}': its {kind} file {} is missing",
+                            im.name,
+                            p.display()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,1 @@
+//! `objnerf sfm`: give a scene 2D-3D tracks with the real COLMAP.

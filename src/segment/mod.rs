@@ -1,0 +1,1 @@
+//! Segment Anything (MobileSAM) through ONNX Runtime, and multi-view segmentation.

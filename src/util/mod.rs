@@ -1,0 +1,7 @@
+//! Small shared helpers: atomic file output, a seeded random generator, image reading.
+
+pub mod atomic;
+pub mod rng;
+
+pub use atomic::{write_atomic, AtomicDir};
+pub use rng::Rng;
