@@ -1,0 +1,2 @@
+//! COLMAP model reading/writing round trips and corrupt-input errors.
+mod common;
