@@ -1,2 +1,0 @@
-//! COLMAP model reading/writing round trips and corrupt-input errors.
-mod common;
