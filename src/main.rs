@@ -52,6 +52,9 @@ enum Command {
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+        /// Replace the output folder if it exists.
+        #[arg(long)]
+        overwrite: bool,
     },
 }
 
@@ -70,12 +73,12 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Sfm { input, out, downscale, reconstruct, matcher, camera_model, max_features, json } => {
+        Command::Sfm { input, out, downscale, reconstruct, matcher, camera_model, max_features, json, overwrite } => {
             use objnerf::scene::sfm;
             if downscale == 0 {
                 return Err(objnerf::Error::invalid("--downscale must be at least 1"));
             }
-            let opts = sfm::SfmOptions { downscale, camera_model, max_features, matcher, ..Default::default() };
+            let opts = sfm::SfmOptions { downscale, camera_model, max_features, matcher, overwrite, ..Default::default() };
             let report = match sfm::resolve_input(&input, reconstruct)? {
                 sfm::SfmInput::Images(dir) => sfm::reconstruct(&dir, &out, &opts)?,
                 sfm::SfmInput::Posed(scene) => sfm::triangulate(&scene, &out, &opts)?,

@@ -26,11 +26,13 @@ pub struct SfmOptions {
     pub matcher: String,
     /// COLMAP's threads (-1 = all cores).
     pub threads: i32,
+    /// Replace the output folder if it exists.
+    pub overwrite: bool,
 }
 
 impl Default for SfmOptions {
     fn default() -> Self {
-        SfmOptions { downscale: 1, camera_model: "SIMPLE_RADIAL".into(), max_features: 8192, matcher: "exhaustive".into(), threads: -1 }
+        SfmOptions { downscale: 1, camera_model: "SIMPLE_RADIAL".into(), max_features: 8192, matcher: "exhaustive".into(), threads: -1, overwrite: false }
     }
 }
 
@@ -122,6 +124,12 @@ fn run_colmap(program: &Path, args: &[String], log: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Fail early (before minutes of COLMAP) when the output folder would be refused at the end.
+fn check_out(out: &Path, opts: &SfmOptions) -> Result<()> {
+    drop(crate::util::AtomicDir::new(out, opts.overwrite)?);
+    Ok(())
+}
+
 /// Prepare `work/images/NNNNN.ext`: symlinks to the originals, or downscaled copies. Sorted names
 /// make COLMAP's image ids follow the scene's order.
 fn stage_images(paths: &[PathBuf], work: &Path, downscale: u32) -> Result<Vec<String>> {
@@ -185,6 +193,7 @@ fn extract_and_match(program: &Path, work: &Path, opts: &SfmOptions, camera_args
 pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<SfmReport> {
     let start = Instant::now();
     let program = colmap_program()?;
+    check_out(out, opts)?;
     let mut paths: Vec<PathBuf> = std::fs::read_dir(images_dir)
         .map_err(|e| Error::io(images_dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -244,6 +253,7 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
 pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmReport> {
     let start = Instant::now();
     let program = colmap_program()?;
+    check_out(out, opts)?;
     let root = image_root(scene)?;
     let work = tempfile::Builder::new().prefix("objnerf-sfm-").tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let log = work.path().join("colmap.log");
@@ -383,6 +393,7 @@ fn rename_and_rescale(model: &mut Scene, staged: &[String], originals: &[String]
 }
 
 fn finish(mut model: Scene, out: &Path, images_root: &Path, mode: &'static str, num_images: usize, start: Instant, work: tempfile::TempDir) -> Result<SfmReport> {
+    // Checked empty (or --overwrite) before COLMAP ran.
     let dest = crate::util::AtomicDir::new(out, true)?;
     let model_dir = dest.path().join("sparse/0");
     colmap::write_model(&model, &model_dir, ModelFormat::Binary)?;
