@@ -1,1 +1,2 @@
 //! Segment Anything (MobileSAM) through ONNX Runtime, and multi-view segmentation.
+pub mod hull;
