@@ -73,18 +73,38 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Sfm { input, out, downscale, reconstruct, matcher, camera_model, max_features, json, overwrite } => {
+        Command::Sfm {
+            input,
+            out,
+            downscale,
+            reconstruct,
+            matcher,
+            camera_model,
+            max_features,
+            json,
+            overwrite,
+        } => {
             use objnerf::scene::sfm;
             if downscale == 0 {
                 return Err(objnerf::Error::invalid("--downscale must be at least 1"));
             }
-            let opts = sfm::SfmOptions { downscale, camera_model, max_features, matcher, overwrite, ..Default::default() };
+            let opts = sfm::SfmOptions {
+                downscale,
+                camera_model,
+                max_features,
+                matcher,
+                overwrite,
+                ..Default::default()
+            };
             let report = match sfm::resolve_input(&input, reconstruct)? {
                 sfm::SfmInput::Images(dir) => sfm::reconstruct(&dir, &out, &opts)?,
                 sfm::SfmInput::Posed(scene) => sfm::triangulate(&scene, &out, &opts)?,
             };
             if json {
-                println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).expect("report serialises")
+                );
             } else {
                 println!(
                     "{}: {} of {} images registered, {} points (mean track length {:.2}) in {:.1} s -> {}",

@@ -32,7 +32,14 @@ pub struct SfmOptions {
 
 impl Default for SfmOptions {
     fn default() -> Self {
-        SfmOptions { downscale: 1, camera_model: "SIMPLE_RADIAL".into(), max_features: 8192, matcher: "exhaustive".into(), threads: -1, overwrite: false }
+        SfmOptions {
+            downscale: 1,
+            camera_model: "SIMPLE_RADIAL".into(),
+            max_features: 8192,
+            matcher: "exhaustive".into(),
+            threads: -1,
+            overwrite: false,
+        }
     }
 }
 
@@ -64,7 +71,12 @@ fn has_images(dir: &Path) -> bool {
 
 fn is_image(p: &Path) -> bool {
     p.extension()
-        .map(|e| matches!(e.to_string_lossy().to_lowercase().as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff" | "bmp"))
+        .map(|e| {
+            matches!(
+                e.to_string_lossy().to_lowercase().as_str(),
+                "png" | "jpg" | "jpeg" | "tif" | "tiff" | "bmp"
+            )
+        })
         .unwrap_or(false)
 }
 
@@ -91,7 +103,11 @@ pub fn colmap_program() -> Result<PathBuf> {
     let candidates = std::env::var_os("OBJNERF_COLMAP")
         .map(PathBuf::from)
         .into_iter()
-        .chain(std::env::var_os("PATH").into_iter().flat_map(|p| std::env::split_paths(&p).map(|d| d.join("colmap")).collect::<Vec<_>>()));
+        .chain(std::env::var_os("PATH").into_iter().flat_map(|p| {
+            std::env::split_paths(&p)
+                .map(|d| d.join("colmap"))
+                .collect::<Vec<_>>()
+        }));
     for c in candidates {
         if c.is_file() {
             return Ok(c);
@@ -114,12 +130,27 @@ fn run_colmap(program: &Path, args: &[String], log: &Path) -> Result<()> {
     let mut text = String::from_utf8_lossy(&out.stdout).to_string();
     text.push_str(&String::from_utf8_lossy(&out.stderr));
     use std::io::Write;
-    if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) {
+    if let Ok(mut f) = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+    {
         let _ = writeln!(f, "$ colmap {}\n{text}", args.join(" "));
     }
     if !out.status.success() {
-        let tail: String = text.lines().rev().take(15).collect::<Vec<_>>().into_iter().rev().collect::<Vec<_>>().join("\n");
-        return Err(Error::external(format!("colmap {stage}"), format!("failed ({}); log {}:\n{tail}", out.status, log.display())));
+        let tail: String = text
+            .lines()
+            .rev()
+            .take(15)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .collect::<Vec<_>>()
+            .join("\n");
+        return Err(Error::external(
+            format!("colmap {stage}"),
+            format!("failed ({}); log {}:\n{tail}", out.status, log.display()),
+        ));
     }
     Ok(())
 }
@@ -137,13 +168,23 @@ fn stage_images(paths: &[PathBuf], work: &Path, downscale: u32) -> Result<Vec<St
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     let mut names = Vec::with_capacity(paths.len());
     for (i, p) in paths.iter().enumerate() {
-        let ext = p.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_else(|| "png".into());
-        let name = if downscale > 1 { format!("{i:05}.png") } else { format!("{i:05}.{ext}") };
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_lowercase())
+            .unwrap_or_else(|| "png".into());
+        let name = if downscale > 1 {
+            format!("{i:05}.png")
+        } else {
+            format!("{i:05}.{ext}")
+        };
         let dst = dir.join(&name);
         if downscale > 1 {
             let img = image::open(p).map_err(|e| Error::image(p, e))?;
             let (w, h) = (img.width(), img.height());
-            let (nw, nh) = (((w as f64 / downscale as f64).round() as u32).max(1), ((h as f64 / downscale as f64).round() as u32).max(1));
+            let (nw, nh) = (
+                ((w as f64 / downscale as f64).round() as u32).max(1),
+                ((h as f64 / downscale as f64).round() as u32).max(1),
+            );
             let small = img.resize_exact(nw, nh, image::imageops::FilterType::Triangle);
             small.save(&dst).map_err(|e| Error::image(&dst, e))?;
         } else {
@@ -159,7 +200,13 @@ fn s(x: impl ToString) -> String {
     x.to_string()
 }
 
-fn extract_and_match(program: &Path, work: &Path, opts: &SfmOptions, camera_args: &[String], log: &Path) -> Result<()> {
+fn extract_and_match(
+    program: &Path,
+    work: &Path,
+    opts: &SfmOptions,
+    camera_args: &[String],
+    log: &Path,
+) -> Result<()> {
     let db = work.join("database.db");
     let mut args = vec![
         s("feature_extractor"),
@@ -179,11 +226,23 @@ fn extract_and_match(program: &Path, work: &Path, opts: &SfmOptions, camera_args
     let matcher = match opts.matcher.as_str() {
         "exhaustive" => "exhaustive_matcher",
         "sequential" => "sequential_matcher",
-        m => return Err(Error::invalid(format!("unknown matcher '{m}': use exhaustive or sequential"))),
+        m => {
+            return Err(Error::invalid(format!(
+                "unknown matcher '{m}': use exhaustive or sequential"
+            )))
+        }
     };
     run_colmap(
         program,
-        &[s(matcher), s("--database_path"), db.display().to_string(), s("--SiftMatching.use_gpu"), s("0"), s("--SiftMatching.num_threads"), opts.threads.to_string()],
+        &[
+            s(matcher),
+            s("--database_path"),
+            db.display().to_string(),
+            s("--SiftMatching.use_gpu"),
+            s("0"),
+            s("--SiftMatching.num_threads"),
+            opts.threads.to_string(),
+        ],
         log,
     )
 }
@@ -201,16 +260,30 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
         .collect();
     paths.sort();
     if paths.len() < 2 {
-        return Err(Error::format(images_dir, format!("found {} images; structure from motion needs at least 2", paths.len())));
+        return Err(Error::format(
+            images_dir,
+            format!(
+                "found {} images; structure from motion needs at least 2",
+                paths.len()
+            ),
+        ));
     }
-    let work = tempfile::Builder::new().prefix("objnerf-sfm-").tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let work = tempfile::Builder::new()
+        .prefix("objnerf-sfm-")
+        .tempdir()
+        .map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let log = work.path().join("colmap.log");
     let staged = stage_images(&paths, work.path(), opts.downscale)?;
     extract_and_match(
         &program,
         work.path(),
         opts,
-        &[s("--ImageReader.single_camera"), s("1"), s("--ImageReader.camera_model"), opts.camera_model.clone()],
+        &[
+            s("--ImageReader.single_camera"),
+            s("1"),
+            s("--ImageReader.camera_model"),
+            opts.camera_model.clone(),
+        ],
         &log,
     )?;
     let sparse = work.path().join("sparse");
@@ -232,20 +305,43 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
     )?;
     // COLMAP may split the images into several models: keep the one with the most images.
     let mut best: Option<Scene> = None;
-    for entry in std::fs::read_dir(&sparse).map_err(|e| Error::io(&sparse, e))?.flatten() {
+    for entry in std::fs::read_dir(&sparse)
+        .map_err(|e| Error::io(&sparse, e))?
+        .flatten()
+    {
         if colmap::detect(&entry.path()).is_some() {
             let m = colmap::read_model(&entry.path(), &work.path().join("images"))?;
-            if best.as_ref().is_none_or(|b| m.images.len() > b.images.len()) {
+            if best
+                .as_ref()
+                .is_none_or(|b| m.images.len() > b.images.len())
+            {
                 best = Some(m);
             }
         }
     }
     let mut model = best.ok_or_else(|| {
-        Error::external("colmap mapper", format!("registered no images (too few matches?); log {}", log.display()))
+        Error::external(
+            "colmap mapper",
+            format!(
+                "registered no images (too few matches?); log {}",
+                log.display()
+            ),
+        )
     })?;
-    let originals: Vec<String> = paths.iter().map(|p| p.file_name().unwrap().to_string_lossy().to_string()).collect();
+    let originals: Vec<String> = paths
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().to_string())
+        .collect();
     rename_and_rescale(&mut model, &staged, &originals, &paths)?;
-    finish(model, out, images_dir, "reconstruct", paths.len(), start, work)
+    finish(
+        model,
+        out,
+        images_dir,
+        "reconstruct",
+        paths.len(),
+        start,
+        work,
+    )
 }
 
 /// Triangulate points for a posed scene, keeping its cameras and poses. Writes `out/sparse/0`
@@ -255,7 +351,10 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
     let program = colmap_program()?;
     check_out(out, opts)?;
     let root = image_root(scene)?;
-    let work = tempfile::Builder::new().prefix("objnerf-sfm-").tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let work = tempfile::Builder::new()
+        .prefix("objnerf-sfm-")
+        .tempdir()
+        .map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let log = work.path().join("colmap.log");
     let paths: Vec<PathBuf> = scene.images.iter().map(|im| im.path.clone()).collect();
     let staged = stage_images(&paths, work.path(), opts.downscale)?;
@@ -285,15 +384,26 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
         s("--ImageReader.camera_model"),
         s(cam.model.name()),
         s("--ImageReader.camera_params"),
-        cam.params.iter().map(|p| p.to_string()).collect::<Vec<_>>().join(","),
+        cam.params
+            .iter()
+            .map(|p| p.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
     ];
     if !single {
         // Per-image cameras: COLMAP numbers them in image order.
-        let cams: Vec<_> = known.images.iter().map(|im| known.cameras[im.camera].camera.clone()).collect();
+        let cams: Vec<_> = known
+            .images
+            .iter()
+            .map(|im| known.cameras[im.camera].camera.clone())
+            .collect();
         known.cameras = cams
             .into_iter()
             .enumerate()
-            .map(|(i, camera)| crate::scene::SceneCamera { id: i as u32 + 1, camera })
+            .map(|(i, camera)| crate::scene::SceneCamera {
+                id: i as u32 + 1,
+                camera,
+            })
             .collect();
         for (i, im) in known.images.iter_mut().enumerate() {
             im.camera = i;
@@ -324,13 +434,28 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
     let mut model = colmap::read_model(&tri, &work.path().join("images"))?;
     // The poses must come back unchanged; a mismatch means the database ids did not line up.
     for im in &model.images {
-        let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| Error::external("colmap point_triangulator", format!("unknown image '{}' in its output", im.name)))?;
+        let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| {
+            Error::external(
+                "colmap point_triangulator",
+                format!("unknown image '{}' in its output", im.name),
+            )
+        })?;
         let d = (im.pose.center() - scene.images[k].pose.center()).length();
         if d > 1e-6 * (1.0 + scene.images[k].pose.center().length()) {
-            return Err(Error::external("colmap point_triangulator", format!("image '{}' moved by {d}: database ids did not match", scene.images[k].name)));
+            return Err(Error::external(
+                "colmap point_triangulator",
+                format!(
+                    "image '{}' moved by {d}: database ids did not match",
+                    scene.images[k].name
+                ),
+            ));
         }
     }
-    let originals: Vec<String> = scene.images.iter().map(|im| relative_name(&im.path, &root)).collect();
+    let originals: Vec<String> = scene
+        .images
+        .iter()
+        .map(|im| relative_name(&im.path, &root))
+        .collect();
     rename_and_rescale(&mut model, &staged, &originals, &paths)?;
     // Keep the scene's exact intrinsics and poses (COLMAP's text round trip is exact, but the
     // original numbers are the reference).
@@ -339,7 +464,15 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             im.pose = scene.images[k].pose;
         }
     }
-    finish(model, out, &root, "triangulate", scene.images.len(), start, work)
+    finish(
+        model,
+        out,
+        &root,
+        "triangulate",
+        scene.images.len(),
+        start,
+        work,
+    )
 }
 
 /// The folder all the scene's images sit under (their longest common ancestor).
@@ -364,15 +497,28 @@ fn image_root(scene: &Scene) -> Result<PathBuf> {
 
 fn relative_name(path: &Path, root: &Path) -> String {
     let abs = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
-    abs.strip_prefix(root).unwrap_or(&abs).to_string_lossy().to_string()
+    abs.strip_prefix(root)
+        .unwrap_or(&abs)
+        .to_string_lossy()
+        .to_string()
 }
 
 /// Give the model's images their original names and paths, and scale cameras and features
 /// from the staged (downscaled) size back to the original image size.
-fn rename_and_rescale(model: &mut Scene, staged: &[String], originals: &[String], paths: &[PathBuf]) -> Result<()> {
+fn rename_and_rescale(
+    model: &mut Scene,
+    staged: &[String],
+    originals: &[String],
+    paths: &[PathBuf],
+) -> Result<()> {
     let mut scale_for_camera: Vec<Option<(u32, u32)>> = vec![None; model.cameras.len()];
     for im in &mut model.images {
-        let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| Error::external("colmap", format!("unknown image '{}' in its output", im.name)))?;
+        let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| {
+            Error::external(
+                "colmap",
+                format!("unknown image '{}' in its output", im.name),
+            )
+        })?;
         im.name = originals[k].clone();
         im.path = paths[k].clone();
         let (w, h) = image::image_dimensions(&paths[k]).map_err(|e| Error::image(&paths[k], e))?;
@@ -392,14 +538,26 @@ fn rename_and_rescale(model: &mut Scene, staged: &[String], originals: &[String]
     Ok(())
 }
 
-fn finish(mut model: Scene, out: &Path, images_root: &Path, mode: &'static str, num_images: usize, start: Instant, work: tempfile::TempDir) -> Result<SfmReport> {
+fn finish(
+    mut model: Scene,
+    out: &Path,
+    images_root: &Path,
+    mode: &'static str,
+    num_images: usize,
+    start: Instant,
+    work: tempfile::TempDir,
+) -> Result<SfmReport> {
     // Checked empty (or --overwrite) before COLMAP ran.
     let dest = crate::util::AtomicDir::new(out, true)?;
     let model_dir = dest.path().join("sparse/0");
     colmap::write_model(&model, &model_dir, ModelFormat::Binary)?;
     let abs_root = std::fs::canonicalize(images_root).map_err(|e| Error::io(images_root, e))?;
-    std::os::unix::fs::symlink(&abs_root, dest.path().join("images")).map_err(|e| Error::io(dest.path().join("images"), e))?;
-    let _ = std::fs::copy(work.path().join("colmap.log"), dest.path().join("colmap.log"));
+    std::os::unix::fs::symlink(&abs_root, dest.path().join("images"))
+        .map_err(|e| Error::io(dest.path().join("images"), e))?;
+    let _ = std::fs::copy(
+        work.path().join("colmap.log"),
+        dest.path().join("colmap.log"),
+    );
     let out = dest.commit()?;
     model.source = out.join("sparse/0");
     model.format = SourceFormat::ColmapBinary;
@@ -409,7 +567,11 @@ fn finish(mut model: Scene, out: &Path, images_root: &Path, mode: &'static str, 
         num_images,
         num_registered: model.images.len(),
         num_points: model.points.len(),
-        mean_track_length: if model.points.is_empty() { 0.0 } else { obs as f64 / model.points.len() as f64 },
+        mean_track_length: if model.points.is_empty() {
+            0.0
+        } else {
+            obs as f64 / model.points.len() as f64
+        },
         seconds: start.elapsed().as_secs_f64(),
         model_dir: out.join("sparse/0"),
     })

@@ -24,13 +24,23 @@ pub struct HullOptions {
 
 impl Default for HullOptions {
     fn default() -> Self {
-        HullOptions { alpha_factor: 3.0, outlier_factor: 4.0, blur_factor: 0.5, threshold: 0.16 }
+        HullOptions {
+            alpha_factor: 3.0,
+            outlier_factor: 4.0,
+            blur_factor: 0.5,
+            threshold: 0.16,
+        }
     }
 }
 
 /// The expected mask (0/255) of the points `pts` (pixel coordinates) in a `width` x `height`
 /// image, and the median spacing it used. Fewer than 3 usable points give an empty mask.
-pub fn expected_mask(pts: &[DVec2], width: u32, height: u32, opts: &HullOptions) -> (GrayImage, f64) {
+pub fn expected_mask(
+    pts: &[DVec2],
+    width: u32,
+    height: u32,
+    opts: &HullOptions,
+) -> (GrayImage, f64) {
     let mut out = GrayImage::new(width, height);
     // Points far outside the frame say nothing about the visible silhouette but can still shape it
     // near the edge: keep a margin of one frame.
@@ -49,7 +59,16 @@ pub fn expected_mask(pts: &[DVec2], width: u32, height: u32, opts: &HullOptions)
         let (_, r2) = face.circumcircle();
         if r2 < alpha2 {
             let [a, b, c] = face.positions();
-            fill_triangle(&mut cover, width, height, [DVec2::new(a.x, a.y), DVec2::new(b.x, b.y), DVec2::new(c.x, c.y)]);
+            fill_triangle(
+                &mut cover,
+                width,
+                height,
+                [
+                    DVec2::new(a.x, a.y),
+                    DVec2::new(b.x, b.y),
+                    DVec2::new(c.x, c.y),
+                ],
+            );
         }
     }
     let sigma = (opts.blur_factor * spacing).max(1.0);
@@ -64,9 +83,13 @@ pub fn expected_mask(pts: &[DVec2], width: u32, height: u32, opts: &HullOptions)
 
 /// Delaunay triangulation of the points after removing isolated ones; returns it with the median
 /// nearest-neighbour distance.
-fn triangulate_without_outliers(pts: &[DVec2], outlier_factor: f64) -> Option<(DelaunayTriangulation<Point2<f64>>, f64)> {
+fn triangulate_without_outliers(
+    pts: &[DVec2],
+    outlier_factor: f64,
+) -> Option<(DelaunayTriangulation<Point2<f64>>, f64)> {
     let build = |p: &[DVec2]| -> Option<DelaunayTriangulation<Point2<f64>>> {
-        DelaunayTriangulation::bulk_load_stable(p.iter().map(|q| Point2::new(q.x, q.y)).collect()).ok()
+        DelaunayTriangulation::bulk_load_stable(p.iter().map(|q| Point2::new(q.x, q.y)).collect())
+            .ok()
     };
     if pts.len() < 3 {
         return None;
@@ -126,7 +149,11 @@ fn fill_triangle(cover: &mut [f32], width: u32, height: u32, t: [DVec2; 3]) {
     for y in y0..=y1 {
         for x in x0..=x1 {
             let p = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-            let (e0, e1, e2) = (edge(t[1], t[2], p) * area, edge(t[2], t[0], p) * area, edge(t[0], t[1], p) * area);
+            let (e0, e1, e2) = (
+                edge(t[1], t[2], p) * area,
+                edge(t[2], t[0], p) * area,
+                edge(t[0], t[1], p) * area,
+            );
             if e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 {
                 cover[(y as u32 * width + x as u32) as usize] = 1.0;
             }
@@ -137,7 +164,9 @@ fn fill_triangle(cover: &mut [f32], width: u32, height: u32, t: [DVec2; 3]) {
 /// Separable Gaussian blur with clamped borders.
 pub fn gaussian_blur(src: &[f32], w: usize, h: usize, sigma: f32) -> Vec<f32> {
     let r = (3.0 * sigma).ceil() as i64;
-    let kernel: Vec<f32> = (-r..=r).map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp()).collect();
+    let kernel: Vec<f32> = (-r..=r)
+        .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
+        .collect();
     let sum: f32 = kernel.iter().sum();
     let kernel: Vec<f32> = kernel.iter().map(|k| k / sum).collect();
     let mut tmp = vec![0f32; w * h];
@@ -188,7 +217,9 @@ mod tests {
     fn l_shape() -> (Vec<DVec2>, GrayImage) {
         let mut pts = Vec::new();
         let mut truth = GrayImage::new(100, 100);
-        let inside = |x: f64, y: f64| (20.0..80.0).contains(&x) && (20.0..80.0).contains(&y) && !(x > 50.0 && y < 50.0);
+        let inside = |x: f64, y: f64| {
+            (20.0..80.0).contains(&x) && (20.0..80.0).contains(&y) && !(x > 50.0 && y < 50.0)
+        };
         for y in 0..100 {
             for x in 0..100 {
                 if inside(x as f64 + 0.5, y as f64 + 0.5) {
@@ -222,14 +253,31 @@ mod tests {
         assert_eq!(mask.get_pixel(60, 40)[0], 0);
         assert_eq!(mask.get_pixel(95, 5)[0], 0);
         // A convex hull fills part of the notch even without the outlier.
-        let (convex, _) = expected_mask(&pts[..pts.len() - 1], 100, 100, &HullOptions { alpha_factor: 1e9, ..Default::default() });
+        let (convex, _) = expected_mask(
+            &pts[..pts.len() - 1],
+            100,
+            100,
+            &HullOptions {
+                alpha_factor: 1e9,
+                ..Default::default()
+            },
+        );
         assert_eq!(convex.get_pixel(60, 40)[0], 255);
-        assert!(iou(&convex, &truth) < score - 0.03, "convex {} vs alpha {score}", iou(&convex, &truth));
+        assert!(
+            iou(&convex, &truth) < score - 0.03,
+            "convex {} vs alpha {score}",
+            iou(&convex, &truth)
+        );
     }
 
     #[test]
     fn too_few_points_give_an_empty_mask() {
-        let (m, _) = expected_mask(&[DVec2::new(1.0, 1.0), DVec2::new(3.0, 3.0)], 10, 10, &HullOptions::default());
+        let (m, _) = expected_mask(
+            &[DVec2::new(1.0, 1.0), DVec2::new(3.0, 3.0)],
+            10,
+            10,
+            &HullOptions::default(),
+        );
         assert!(m.pixels().all(|p| p[0] == 0));
     }
 }

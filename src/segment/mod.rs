@@ -1,2 +1,4 @@
 //! Segment Anything (MobileSAM) through ONNX Runtime, and multi-view segmentation.
+pub mod distance;
 pub mod hull;
+pub mod propagate;
