@@ -6,6 +6,7 @@
 pub mod demo;
 pub mod error;
 pub mod info;
+pub mod mesh;
 pub mod scene;
 pub mod segment;
 pub mod util;
