@@ -5,6 +5,7 @@
 
 pub mod demo;
 pub mod error;
+pub mod eval;
 pub mod info;
 pub mod mesh;
 pub mod scene;
