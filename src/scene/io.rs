@@ -17,7 +17,9 @@ pub struct DepthMap {
 impl DepthMap {
     /// Depth at pixel (col, row), `None` when unknown.
     pub fn get(&self, col: u32, row: u32) -> Option<f32> {
-        let d = *self.metres.get((row as usize) * self.width as usize + col as usize)?;
+        let d = *self
+            .metres
+            .get((row as usize) * self.width as usize + col as usize)?;
         (d.is_finite() && d > 0.0).then_some(d)
     }
 }
@@ -90,7 +92,10 @@ fn read_depth_exr(path: &Path) -> Result<DepthMap> {
     };
     let (w, h) = (layer.size.width(), layer.size.height());
     if metres.len() != w * h {
-        return Err(Error::format(path, "EXR depth channel size does not match the image"));
+        return Err(Error::format(
+            path,
+            "EXR depth channel size does not match the image",
+        ));
     }
     Ok(DepthMap {
         width: w as u32,
@@ -212,7 +217,10 @@ mod tests {
         assert_eq!(read_depth(&p, 1000.0).unwrap(), sample());
         let q = dir.path().join("d8.png");
         GrayImage::new(2, 2).save(&q).unwrap();
-        assert!(read_depth(&q, 1000.0).unwrap_err().to_string().contains("16-bit"));
+        assert!(read_depth(&q, 1000.0)
+            .unwrap_err()
+            .to_string()
+            .contains("16-bit"));
     }
 
     #[test]

@@ -115,14 +115,20 @@ fn parse_header(path: &Path, buf: &[u8]) -> Result<(Encoding, Vec<Element>, usiz
         body += 1;
     }
     if buf.get(body) != Some(&b'\n') {
-        return Err(Error::format(path, "PLY header: end_header is not followed by a newline"));
+        return Err(Error::format(
+            path,
+            "PLY header: end_header is not followed by a newline",
+        ));
     }
     body += 1;
     let text = std::str::from_utf8(&buf[..end])
         .map_err(|_| Error::format(path, "PLY header is not text"))?;
     let mut lines = text.lines().map(str::trim);
     if lines.next() != Some("ply") {
-        return Err(Error::format(path, "not a PLY file: it does not start with 'ply'"));
+        return Err(Error::format(
+            path,
+            "not a PLY file: it does not start with 'ply'",
+        ));
     }
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
@@ -135,12 +141,12 @@ fn parse_header(path: &Path, buf: &[u8]) -> Result<(Encoding, Vec<Element>, usiz
                 encoding = Some(match toks.get(1).copied() {
                     Some("ascii") => Encoding::Ascii,
                     Some("binary_little_endian") => Encoding::BinaryLe,
-                    Some(other) => {
-                        return Err(Error::format(
-                            path,
-                            format!("PLY format '{other}' is not supported (ascii or binary_little_endian)"),
-                        ))
-                    }
+                    Some(other) => return Err(Error::format(
+                        path,
+                        format!(
+                            "PLY format '{other}' is not supported (ascii or binary_little_endian)"
+                        ),
+                    )),
                     None => return Err(bad("format line without a format")),
                 })
             }
@@ -148,7 +154,9 @@ fn parse_header(path: &Path, buf: &[u8]) -> Result<(Encoding, Vec<Element>, usiz
                 let (Some(name), Some(count)) = (toks.get(1), toks.get(2)) else {
                     return Err(bad("element line needs a name and a count"));
                 };
-                let count = count.parse().map_err(|_| bad("element count is not a number"))?;
+                let count = count
+                    .parse()
+                    .map_err(|_| bad("element count is not a number"))?;
                 elements.push(Element {
                     name: name.to_string(),
                     count,
@@ -167,13 +175,19 @@ fn parse_header(path: &Path, buf: &[u8]) -> Result<(Encoding, Vec<Element>, usiz
                     Property {
                         list: Some(scalar(toks.get(2))?),
                         ty: scalar(toks.get(3))?,
-                        name: toks.get(4).ok_or_else(|| bad("list property without a name"))?.to_string(),
+                        name: toks
+                            .get(4)
+                            .ok_or_else(|| bad("list property without a name"))?
+                            .to_string(),
                     }
                 } else {
                     Property {
                         list: None,
                         ty: scalar(toks.get(1))?,
-                        name: toks.get(2).ok_or_else(|| bad("property without a name"))?.to_string(),
+                        name: toks
+                            .get(2)
+                            .ok_or_else(|| bad("property without a name"))?
+                            .to_string(),
                     }
                 };
                 el.props.push(prop);
@@ -253,9 +267,17 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
         .iter()
         .position(|e| e.name == "vertex")
         .ok_or_else(|| Error::format(path, "PLY has no vertex element"))?;
-    let find = |n: &str| elements[vertex].props.iter().position(|p| p.name == n && p.list.is_none());
+    let find = |n: &str| {
+        elements[vertex]
+            .props
+            .iter()
+            .position(|p| p.name == n && p.list.is_none())
+    };
     let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
-        return Err(Error::format(path, "PLY vertices have no x, y, z properties"));
+        return Err(Error::format(
+            path,
+            "PLY vertices have no x, y, z properties",
+        ));
     };
     let colour = match (find("red"), find("green"), find("blue")) {
         (Some(r), Some(g), Some(b)) => Some([r, g, b]),
@@ -263,7 +285,11 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
     };
     // A corrupt count must not make us allocate before the data runs out.
     let min_vertex_bytes: usize = match encoding {
-        Encoding::BinaryLe => elements[vertex].props.iter().map(|p| p.list.unwrap_or(p.ty).size()).sum(),
+        Encoding::BinaryLe => elements[vertex]
+            .props
+            .iter()
+            .map(|p| p.list.unwrap_or(p.ty).size())
+            .sum(),
         Encoding::Ascii => 2 * elements[vertex].props.len(),
     };
     if elements[vertex].count.saturating_mul(min_vertex_bytes) > body.len() {
@@ -310,7 +336,11 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
             let rgb = match colour {
                 None => [255; 3],
                 Some(c) => c.map(|k| {
-                    let v = if el.props[k].ty.is_float() { values[k] * 255.0 } else { values[k] };
+                    let v = if el.props[k].ty.is_float() {
+                        values[k] * 255.0
+                    } else {
+                        values[k]
+                    };
                     v.round().clamp(0.0, 255.0) as u8
                 }),
             };
@@ -346,12 +376,22 @@ mod tests {
     fn rejects_big_endian_and_truncation() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("b.ply");
-        std::fs::write(&p, "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n").unwrap();
-        assert!(read_points(&p).unwrap_err().to_string().contains("binary_big_endian"));
+        std::fs::write(
+            &p,
+            "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n",
+        )
+        .unwrap();
+        assert!(read_points(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("binary_big_endian"));
         let pts = vec![(DVec3::new(1.0, 2.0, 3.0), [4, 5, 6]); 3];
         write_points(&p, &pts).unwrap();
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() - 2]).unwrap();
-        assert!(read_points(&p).unwrap_err().to_string().contains("truncated"));
+        assert!(read_points(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("truncated"));
     }
 }
