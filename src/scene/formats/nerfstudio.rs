@@ -174,9 +174,15 @@ pub fn read(path: &Path) -> Result<Scene> {
             })
             .collect(),
     };
-    let synthetic = path
-        .file_name()
-        .is_some_and(|n| n.to_string_lossy().starts_with("transforms_"));
+    // NeRF-synthetic ships one file per split.
+    let synthetic = path.file_name().is_some_and(|n| {
+        [
+            "transforms_train.json",
+            "transforms_test.json",
+            "transforms_val.json",
+        ]
+        .contains(&n.to_string_lossy().as_ref())
+    });
     let scene = Scene {
         source: path.to_path_buf(),
         format: if synthetic {

@@ -141,12 +141,14 @@ fn parse_header(path: &Path, buf: &[u8]) -> Result<(Encoding, Vec<Element>, usiz
                 encoding = Some(match toks.get(1).copied() {
                     Some("ascii") => Encoding::Ascii,
                     Some("binary_little_endian") => Encoding::BinaryLe,
-                    Some(other) => return Err(Error::format(
-                        path,
-                        format!(
+                    Some(other) => {
+                        return Err(Error::format(
+                            path,
+                            format!(
                             "PLY format '{other}' is not supported (ascii or binary_little_endian)"
                         ),
-                    )),
+                        ))
+                    }
                     None => return Err(bad("format line without a format")),
                 })
             }
