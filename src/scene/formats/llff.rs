@@ -16,7 +16,14 @@ pub fn read(dir: &Path) -> Result<Scene> {
     if shape.len() != 2 || shape[1] != 17 {
         return Err(Error::format(
             &npy,
-            format!("expected shape (N, 17), found {shape:?}"),
+            format!(
+                "expected shape (N, 17), found ({})",
+                shape
+                    .iter()
+                    .map(|d| d.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
         ));
     }
     let n = shape[0];

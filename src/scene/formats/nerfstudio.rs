@@ -100,7 +100,17 @@ impl Intrinsics {
 /// Read a nerfstudio or NeRF-synthetic transforms JSON file.
 pub fn read(path: &Path) -> Result<Scene> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let tf: Transforms = serde_json::from_str(&text).map_err(|e| Error::json(path, e))?;
+    let tf: Transforms = serde_json::from_str(&text).map_err(|e| {
+        // Python's json module writes non-finite floats as bare NaN/Infinity: say so.
+        if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
+            Error::format(
+                path,
+                format!("invalid JSON: {e} (the file holds NaN or Infinity, which JSON does not allow: a non-finite pose or intrinsic?)"),
+            )
+        } else {
+            Error::json(path, e)
+        }
+    })?;
     let dir = path.parent().unwrap_or(Path::new(""));
     if tf.frames.is_empty() {
         return Err(Error::format(path, "no frames"));

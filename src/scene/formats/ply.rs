@@ -67,7 +67,7 @@ impl Scalar {
     fn is_float(self) -> bool {
         matches!(self, Scalar::F32 | Scalar::F64)
     }
-    fn from_le(self, b: &[u8]) -> f64 {
+    fn decode_le(self, b: &[u8]) -> f64 {
         match self {
             Scalar::I8 => b[0] as i8 as f64,
             Scalar::U8 => b[0] as f64,
@@ -225,7 +225,7 @@ impl Body<'_> {
                     .get(self.pos..self.pos + ty.size())
                     .ok_or_else(truncated)?;
                 self.pos += ty.size();
-                Ok(ty.from_le(b))
+                Ok(ty.decode_le(b))
             }
             Encoding::Ascii => {
                 let tok = self.tokens.next().ok_or_else(truncated)?;
