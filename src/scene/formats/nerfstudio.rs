@@ -531,6 +531,77 @@ pub fn relative_to(path: &Path, base: &Path) -> PathBuf {
 mod tests {
     use super::*;
 
+    fn keys(json: &str) -> Intrinsics {
+        serde_json::from_str(json).unwrap()
+    }
+
+    #[test]
+    fn camera_models_from_keys_and_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = dir.path().join("i.png");
+        image::RgbImage::new(40, 30).save(&img).unwrap();
+        let cam = |j: &str| frame_camera(&keys(j), &img);
+        // NeRF-synthetic: focal from the field of view, centred principal point, size from file.
+        let c = cam(r#"{"camera_angle_x": 1.0}"#).unwrap();
+        assert_eq!(c.model, CameraModel::Pinhole);
+        assert_eq!(
+            c.params,
+            vec![20.0 / 0.5f64.tan(), 20.0 / 0.5f64.tan(), 20.0, 15.0]
+        );
+        let c =
+            cam(r#"{"fl_x": 50, "fl_y": 51, "cx": 20, "cy": 15, "k1": 0.1, "k3": 0.01}"#).unwrap();
+        assert_eq!(c.model, CameraModel::FullOpenCv);
+        assert_eq!(c.params[8], 0.01);
+        let c = cam(r#"{"camera_model": "OPENCV_FISHEYE", "fl_x": 50, "k1": 0.1, "k4": 0.01}"#)
+            .unwrap();
+        assert_eq!((c.model, c.params[7]), (CameraModel::OpenCvFisheye, 0.01));
+        let c = cam(r#"{"camera_model": "SIMPLE_PINHOLE", "fl_x": 50, "w": 40, "h": 30}"#).unwrap();
+        assert_eq!(c.params, vec![50.0, 20.0, 15.0]);
+        for (bad, why) in [
+            (r#"{"camera_model": "OPENCV", "fl_x": 50, "k4": 0.1}"#, "k4"),
+            (
+                r#"{"camera_model": "EQUIRECTANGULAR", "fl_x": 50}"#,
+                "not supported",
+            ),
+            (
+                r#"{"camera_model": "PINHOLE", "fl_x": 50, "k1": 0.1}"#,
+                "distortion",
+            ),
+            (r#"{"fl_x": 50, "w": 40}"#, "both w and h"),
+            (r#"{"fl_x": 50, "w": 40.5, "h": 30}"#, "whole number"),
+            (r#"{"cx": 3}"#, "no focal length"),
+        ] {
+            let e = cam(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+        // Every model we can write reads back as the same projection.
+        let models = [
+            (CameraModel::SimplePinhole, vec![50.0, 20.0, 15.0]),
+            (CameraModel::Pinhole, vec![50.0, 52.0, 20.0, 15.0]),
+            (CameraModel::SimpleRadial, vec![50.0, 20.0, 15.0, 0.1]),
+            (CameraModel::Radial, vec![50.0, 20.0, 15.0, 0.1, -0.02]),
+            (
+                CameraModel::OpenCv,
+                vec![50.0, 52.0, 20.0, 15.0, 0.1, -0.02, 0.001, 0.002],
+            ),
+            (
+                CameraModel::OpenCvFisheye,
+                vec![50.0, 52.0, 20.0, 15.0, 0.1, -0.02, 0.01, 0.001],
+            ),
+            (
+                CameraModel::RadialFisheye,
+                vec![50.0, 20.0, 15.0, 0.1, -0.02],
+            ),
+        ];
+        for (model, params) in models {
+            let orig = Camera::new(model, 40, 30, params).unwrap();
+            let back = frame_camera(&camera_keys(&orig).unwrap(), &img).unwrap();
+            let p = glam::DVec3::new(0.2, -0.1, 1.0);
+            let (a, b) = (orig.project(p).unwrap(), back.project(p).unwrap());
+            assert!((a - b).length() < 1e-12, "{model:?}: {a} vs {b}");
+        }
+    }
+
     #[test]
     fn relative_paths() {
         assert_eq!(
