@@ -8,9 +8,10 @@
 use super::{check_files_exist, image_size, intern_camera, ply};
 use crate::error::{Error, Result};
 use crate::scene::{Camera, CameraModel, ImageView, Point3D, Pose, Scene, SourceFormat};
+use crate::util::paths::{normalize, relative_to, same_file_or_path};
 use crate::util::write_atomic;
 use serde::{Deserialize, Serialize};
-use std::path::{Component, Path, PathBuf};
+use std::path::Path;
 
 /// Intrinsic keys, at the top level or in a frame. Unknown keys (`sharpness`, `aabb_scale`, ...)
 /// are ignored on reading and not written.
@@ -476,55 +477,10 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
 /// (so names survive a write next to, or into a link of, the source folder), else a path
 /// relative to `dir`.
 fn file_ref(file: &Path, name: Option<&str>, dir: &Path) -> String {
-    if let Some(name) = name {
-        let here = dir.join(name);
-        let same = match (here.canonicalize(), file.canonicalize()) {
-            (Ok(a), Ok(b)) => a == b,
-            _ => absolute(&here) == absolute(file),
-        };
-        if same {
-            return name.to_string();
-        }
+    match name {
+        Some(name) if same_file_or_path(&dir.join(name), file) => name.to_string(),
+        _ => relative_to(file, dir).to_string_lossy().replace('\\', "/"),
     }
-    let rel = relative_to(file, dir);
-    rel.to_string_lossy().replace('\\', "/")
-}
-
-/// `path` with `.` components dropped and `..` folded where it follows a normal component.
-fn normalize(path: &Path) -> PathBuf {
-    let mut out = PathBuf::new();
-    for c in path.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir
-                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
-            {
-                out.pop();
-            }
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-fn absolute(path: &Path) -> PathBuf {
-    normalize(&std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()))
-}
-
-/// `path` relative to the folder `base`, by components (no file system access).
-pub fn relative_to(path: &Path, base: &Path) -> PathBuf {
-    let (p, b) = (absolute(path), absolute(base));
-    let pc: Vec<_> = p.components().collect();
-    let bc: Vec<_> = b.components().collect();
-    let common = pc.iter().zip(&bc).take_while(|(a, b)| a == b).count();
-    let mut out = PathBuf::new();
-    for _ in common..bc.len() {
-        out.push("..");
-    }
-    for c in &pc[common..] {
-        out.push(c);
-    }
-    out
 }
 
 #[cfg(test)]
@@ -600,23 +556,5 @@ mod tests {
             let (a, b) = (orig.project(p).unwrap(), back.project(p).unwrap());
             assert!((a - b).length() < 1e-12, "{model:?}: {a} vs {b}");
         }
-    }
-
-    #[test]
-    fn relative_paths() {
-        assert_eq!(
-            relative_to(Path::new("/a/b/c.png"), Path::new("/a")),
-            Path::new("b/c.png")
-        );
-        assert_eq!(
-            relative_to(Path::new("/a/b/c.png"), Path::new("/a/d/")),
-            Path::new("../b/c.png")
-        );
-        assert_eq!(
-            relative_to(Path::new("/a/./b/../c.png"), Path::new("/a")),
-            Path::new("c.png")
-        );
-        assert_eq!(normalize(Path::new("./train/r_0")), Path::new("train/r_0"));
-        assert_eq!(normalize(Path::new("../x/./y")), Path::new("../x/y"));
     }
 }
