@@ -113,6 +113,7 @@ pub fn read(path: &Path) -> Result<Scene> {
         }
     })?;
     let dir = path.parent().unwrap_or(Path::new(""));
+    let resolve = |p: &str| dir.join(normalize(Path::new(p)));
     if tf.frames.is_empty() {
         return Err(Error::format(path, "no frames"));
     }
@@ -144,7 +145,7 @@ pub fn read(path: &Path) -> Result<Scene> {
         })?;
         let image_path = dir.join(&name);
         let camera = frame_camera(&fr.intrinsics.over(&tf.intrinsics), &image_path).map_err(err)?;
-        let pose = matrix_3x4(&fr.transform_matrix, true)
+        let pose = matrix_3x4(&fr.transform_matrix, "transform_matrix")
             .and_then(Pose::from_c2w_opengl)
             .map_err(err)?;
         images.push(ImageView {
@@ -153,27 +154,18 @@ pub fn read(path: &Path) -> Result<Scene> {
             path: image_path,
             camera: intern_camera(&mut cameras, camera),
             pose,
-            mask_path: fr
-                .mask_path
-                .as_deref()
-                .map(|p| dir.join(normalize(Path::new(p)))),
-            depth_path: fr
-                .depth_file_path
-                .as_deref()
-                .map(|p| dir.join(normalize(Path::new(p)))),
+            mask_path: fr.mask_path.as_deref().map(resolve),
+            depth_path: fr.depth_file_path.as_deref().map(resolve),
             features: Vec::new(),
         });
     }
     let applied_transform = match &tf.applied_transform {
         None => None,
-        Some(m) => Some(
-            matrix_3x4(m, false)
-                .map_err(|m| Error::format(path, format!("applied_transform: {m}")))?,
-        ),
+        Some(m) => Some(matrix_3x4(m, "applied_transform").map_err(|m| Error::format(path, m))?),
     };
     let points = match &tf.ply_file_path {
         None => Vec::new(),
-        Some(p) => ply::read_points(&dir.join(normalize(Path::new(p))))?
+        Some(p) => ply::read_points(&resolve(p))?
             .into_iter()
             .enumerate()
             .map(|(i, (xyz, rgb))| Point3D {
@@ -233,13 +225,8 @@ fn image_name(dir: &Path, file_path: &str) -> Option<String> {
         .find(|n| dir.join(n).is_file())
 }
 
-/// A 3x4 (or 4x4 with a last row of 0 0 0 1) row-major matrix; `is_pose` only changes the message.
-fn matrix_3x4(m: &[Vec<f64>], is_pose: bool) -> std::result::Result<[[f64; 4]; 3], String> {
-    let what = if is_pose {
-        "transform_matrix"
-    } else {
-        "matrix"
-    };
+/// A 3x4 (or 4x4 with a last row of 0 0 0 1) row-major matrix; `what` names it in errors.
+fn matrix_3x4(m: &[Vec<f64>], what: &str) -> std::result::Result<[[f64; 4]; 3], String> {
     if !(m.len() == 3 || m.len() == 4) || m.iter().any(|r| r.len() != 4) {
         return Err(format!("{what} must be 3x4 or 4x4"));
     }
