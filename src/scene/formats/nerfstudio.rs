@@ -412,6 +412,14 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
             camera_keys(&c.camera).map_err(|m| Error::format(path, format!("camera {}: {m}", c.id)))
         })
         .collect::<Result<Vec<_>>>()?;
+    // nerfstudio reads depth images as millimetres and the file has no key to say otherwise.
+    if scene.images.iter().any(|i| i.depth_path.is_some()) && scene.depth_scale != 1000.0 {
+        return Err(Error::invalid(format!(
+            "{}: depth images store depth x {}, but transforms.json depth must be millimetres (x 1000)",
+            path.display(),
+            scene.depth_scale
+        )));
+    }
     let shared = scene.cameras.len() == 1;
     let frames = scene
         .images

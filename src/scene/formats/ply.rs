@@ -294,7 +294,8 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
             .sum(),
         Encoding::Ascii => 2 * elements[vertex].props.len(),
     };
-    if elements[vertex].count.saturating_mul(min_vertex_bytes) > body.len() {
+    // (+1: the last ascii value needs no separator after it.)
+    if elements[vertex].count.saturating_mul(min_vertex_bytes) > body.len() + 1 {
         return Err(Error::format(
             path,
             format!(
