@@ -94,7 +94,7 @@ fn llff_poses_and_scaled_focal() {
 }
 
 #[test]
-fn llff_count_mismatch_is_an_error() {
+fn llff_image_folder_must_match_pose_count() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     std::fs::create_dir_all(dir.join("images")).unwrap();
@@ -108,6 +108,16 @@ fn llff_count_mismatch_is_an_error() {
     );
     let msg = llff::read(dir).unwrap_err().to_string();
     assert!(msg.contains("2 poses") && msg.contains("has 1"), "{msg}");
+    // A downscaled folder with the right count is used instead, focal scaled to it.
+    std::fs::create_dir_all(dir.join("images_2")).unwrap();
+    for n in ["x.png", "y.png"] {
+        image::RgbImage::new(2, 2)
+            .save(dir.join("images_2").join(n))
+            .unwrap();
+    }
+    let scene = llff::read(dir).unwrap();
+    assert!(scene.images[1].path.ends_with("images_2/y.png"));
+    assert_eq!(scene.cameras[0].camera.params, vec![2.5, 2.5, 1.0, 1.0]);
 }
 
 #[test]

@@ -224,6 +224,18 @@ mod tests {
     }
 
     #[test]
+    fn rgb_exr_reads_the_red_channel() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("rgb.exr");
+        let img = image::Rgb32FImage::from_fn(2, 2, |x, y| {
+            image::Rgb([1.5 + x as f32, 9.0, 9.0 + y as f32])
+        });
+        DynamicImage::ImageRgb32F(img).save(&p).unwrap();
+        let d = read_depth(&p, 1000.0).unwrap();
+        assert_eq!(d.metres, vec![1.5, 2.5, 1.5, 2.5]);
+    }
+
+    #[test]
     fn mask_takes_alpha() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("m.png");

@@ -506,6 +506,12 @@ mod tests {
         let c = cam(r#"{"camera_model": "OPENCV_FISHEYE", "fl_x": 50, "k1": 0.1, "k4": 0.01}"#)
             .unwrap();
         assert_eq!((c.model, c.params[7]), (CameraModel::OpenCvFisheye, 0.01));
+        // A frame's keys override the top level's.
+        let top = keys(
+            r#"{"camera_model": "OPENCV", "fl_x": 50, "fl_y": 51, "k1": 0.1, "w": 40, "h": 30}"#,
+        );
+        let c = frame_camera(&keys(r#"{"fl_x": 60, "k1": 0.2}"#).over(&top), &img).unwrap();
+        assert_eq!(c.params, vec![60.0, 51.0, 20.0, 15.0, 0.2, 0.0, 0.0, 0.0]);
         let c = cam(r#"{"camera_model": "SIMPLE_PINHOLE", "fl_x": 50, "w": 40, "h": 30}"#).unwrap();
         assert_eq!(c.params, vec![50.0, 20.0, 15.0]);
         for (bad, why) in [
