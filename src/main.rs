@@ -40,8 +40,8 @@ enum Command {
         /// Reconstruct from the images even when the input has poses.
         #[arg(long)]
         reconstruct: bool,
-        /// exhaustive or sequential.
-        #[arg(long, default_value = "exhaustive")]
+        /// auto (posed scenes: pairs chosen from the poses; else exhaustive), exhaustive, sequential, pairs.
+        #[arg(long, default_value = "auto")]
         matcher: String,
         /// COLMAP camera model for full reconstruction.
         #[arg(long, default_value = "SIMPLE_RADIAL")]
