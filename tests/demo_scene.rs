@@ -281,3 +281,59 @@ fn cli_writes_a_scene_that_info_reads() {
         String::from_utf8_lossy(&info.stderr)
     );
 }
+
+#[test]
+fn outliers_and_noise_are_as_asked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let opts = DemoOptions {
+        views: 6,
+        outlier_fraction: 0.1,
+        ..small(5)
+    };
+    write_demo_scene(&opts, &out).unwrap();
+    let scene = Scene::load(&out).unwrap();
+    let mut bad = 0;
+    for p in &scene.points {
+        let errs: Vec<f64> = p
+            .track
+            .iter()
+            .map(|t| {
+                let im = &scene.images[t.image];
+                let px = scene.camera_of(im).project(im.pose.world_to_camera(p.xyz));
+                (px.unwrap() - im.features[t.feature].xy).length()
+            })
+            .collect();
+        let mean = errs.iter().sum::<f64>() / errs.len() as f64;
+        assert!(
+            (mean - p.error).abs() < 1e-9,
+            "stored error is the reprojection error"
+        );
+        // Exactly one wrong observation per outlier point, at least 15 px off; the rest exact.
+        let wrong = errs.iter().filter(|&&e| e >= 15.0).count();
+        assert!(wrong <= 1 && errs.iter().all(|&e| e < 1e-6 || e >= 15.0));
+        bad += wrong;
+    }
+    let want = (0.1 * scene.points.len() as f64).round() as usize;
+    assert_eq!(bad, want);
+
+    let noisy = tmp.path().join("n");
+    write_demo_scene(
+        &DemoOptions {
+            noise_px: 1.0,
+            ..opts.clone()
+        },
+        &noisy,
+    )
+    .unwrap();
+    let scene = Scene::load(&noisy).unwrap();
+    let errs: Vec<f64> = scene.reprojection_errors();
+    let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt();
+    // Inliers only: 2D Gaussian with sigma 1 px has RMS length sqrt(2).
+    let inl: Vec<f64> = errs.iter().copied().filter(|&e| e < 8.0).collect();
+    let rms_in = (inl.iter().map(|e| e * e).sum::<f64>() / inl.len() as f64).sqrt();
+    assert!(
+        (rms_in - 2f64.sqrt()).abs() < 0.1,
+        "inlier RMS {rms_in}, all {rms}"
+    );
+}
