@@ -175,7 +175,12 @@ fn same_seed_same_bytes_other_seed_differs() {
     opts.noise_px = 0.7;
     opts.outlier_fraction = 0.05;
     write_demo_scene(&opts, &a).unwrap();
-    write_demo_scene(&opts, &b).unwrap();
+    // Another thread count: the output must not depend on scheduling.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap();
+    pool.install(|| write_demo_scene(&opts, &b)).unwrap();
     opts.seed = 4;
     write_demo_scene(&opts, &c).unwrap();
     let fa = files_under(&a);
@@ -311,7 +316,7 @@ fn outliers_and_noise_are_as_asked() {
         );
         // Exactly one wrong observation per outlier point, at least 15 px off; the rest exact.
         let wrong = errs.iter().filter(|&&e| e >= 15.0).count();
-        assert!(wrong <= 1 && errs.iter().all(|&e| e < 1e-6 || e >= 15.0));
+        assert!(wrong <= 1 && errs.iter().all(|&e| !(1e-6..15.0).contains(&e)));
         bad += wrong;
     }
     let want = (0.1 * scene.points.len() as f64).round() as usize;

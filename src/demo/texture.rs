@@ -4,19 +4,28 @@
 //! matches features on every surface and the real COLMAP can register all views.
 
 use super::geometry::{Hit, World, BACKDROP, BACKDROP_RADIUS, FLOOR};
+use crate::util::Rng;
 use glam::DVec3;
 use std::f64::consts::PI;
 
-/// Texture noise keyed by the demo seed (a different seed gives different images).
-#[derive(Clone, Copy, Debug)]
+/// Lattice size of the noise (a power of two): the pattern repeats every this many lattice
+/// cells, far more than any surface spans at the frequencies used.
+const LATTICE: usize = 1024;
+
+/// Texture noise keyed by the demo seed (a different seed gives different images). Lattice
+/// values are hashed with Perlin's permutation table: three table loads per lattice point, the
+/// cheapest hash for the renderer's hottest path.
+#[derive(Clone, Debug)]
 pub struct Textures {
-    seed: u64,
+    perm: Vec<u16>,
+    values: Vec<f64>,
 }
 
-fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+/// floor() as an integer without a libm call (the default x86-64 target has no SSE4.1 round);
+/// noise lattice lookups are the renderer's hottest path.
+fn floor_i(x: f64) -> i64 {
+    let i = x as i64;
+    i - (x < i as f64) as i64
 }
 
 fn smooth(t: f64) -> f64 {
@@ -29,27 +38,31 @@ fn lerp3(a: DVec3, b: DVec3, t: f64) -> DVec3 {
 
 impl Textures {
     pub fn new(seed: u64) -> Self {
-        Textures {
-            seed: mix64(seed.wrapping_add(0x5EED)),
-        }
+        let mut rng = Rng::fork(seed, 0x7E47);
+        let mut perm: Vec<u16> = (0..LATTICE as u16).collect();
+        rng.shuffle(&mut perm);
+        let values = (0..LATTICE).map(|_| rng.f64()).collect();
+        Textures { perm, values }
     }
 
     fn lattice(&self, salt: u64, x: i64, y: i64, z: i64) -> f64 {
-        let h = mix64(
-            self.seed
-                ^ salt.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                ^ (x as u64).wrapping_mul(0x8CB9_2BA7_2F3D_8DD7)
-                ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-                ^ (z as u64).wrapping_mul(0x1656_67B1_9E37_79F9),
-        );
-        (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+        let m = LATTICE - 1;
+        // Salts shift the lattice far apart, so each use of the noise looks unrelated.
+        let x = (x as usize).wrapping_add(salt as usize * 317);
+        let h = self.perm[x & m] as usize;
+        let h = self.perm[h.wrapping_add(y as usize) & m] as usize;
+        let h = self.perm[h.wrapping_add(z as usize) & m] as usize;
+        self.values[h]
     }
 
     /// Value noise in [0, 1), smooth, with unit lattice spacing.
     pub fn noise(&self, salt: u64, p: DVec3) -> f64 {
-        let f = p.floor();
-        let (ix, iy, iz) = (f.x as i64, f.y as i64, f.z as i64);
-        let (tx, ty, tz) = (smooth(p.x - f.x), smooth(p.y - f.y), smooth(p.z - f.z));
+        let (ix, iy, iz) = (floor_i(p.x), floor_i(p.y), floor_i(p.z));
+        let (tx, ty, tz) = (
+            smooth(p.x - ix as f64),
+            smooth(p.y - iy as f64),
+            smooth(p.z - iz as f64),
+        );
         let v = |dx, dy, dz| self.lattice(salt, ix + dx, iy + dy, iz + dz);
         let c = [
             v(0, 0, 0),
