@@ -342,3 +342,30 @@ fn outliers_and_noise_are_as_asked() {
         "inlier RMS {rms_in}, all {rms}"
     );
 }
+
+#[test]
+fn transforms_json_has_the_colmap_poses() {
+    let out = shared_scene();
+    let colmap = Scene::load(out).unwrap();
+    let ns = Scene::load(&out.join("transforms.json")).unwrap();
+    assert_eq!(ns.images.len(), colmap.images.len());
+    for im in &colmap.images {
+        let other = &ns.images[ns.find_image(&im.name).unwrap()];
+        assert!(other.path.is_file());
+        let (a, b) = (im.pose.c2w_opencv(), other.pose.c2w_opencv());
+        for (ra, rb) in a.iter().zip(&b) {
+            for (x, y) in ra.iter().zip(rb) {
+                assert!((x - y).abs() < 1e-9, "{}: {a:?} vs {b:?}", im.name);
+            }
+        }
+        let (ca, cb) = (colmap.camera_of(im), ns.camera_of(other));
+        assert_eq!((ca.width, ca.height), (cb.width, cb.height));
+        for (x, y) in ca.params.iter().zip(&cb.params) {
+            assert!((x - y).abs() < 1e-9);
+        }
+        // Depth comes along as the truth millimetre PNGs.
+        let depth = other.depth_path.as_ref().expect("depth_file_path");
+        let d = objnerf::scene::io::read_depth(depth, ns.depth_scale).unwrap();
+        assert_eq!((d.width, d.height), (ca.width, ca.height));
+    }
+}

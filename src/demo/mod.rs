@@ -9,7 +9,7 @@
 //! ```text
 //! images/view_000.png ...           colour, anti-aliased
 //! sparse/0/{cameras,images,points3D}.bin   COLMAP model with true, visibility-checked tracks
-//! transforms.json                   nerfstudio, depth_file_path -> truth/depth/*.png
+//! transforms.json, sparse_pc.ply    nerfstudio, depth_file_path -> truth/depth/*.png
 //! truth/depth/view_000.{png,exr}    z-depth: 16-bit millimetres / f32 metres
 //! truth/masks/<object>/view_000.png visible mask of each object (0/255)
 //! truth/meshes/<object>.{ply,obj}   exact surface, tessellated, world coordinates
@@ -116,8 +116,6 @@ pub struct DemoSummary {
     pub points: usize,
     pub observations: usize,
     pub objects: Vec<ObjectTruth>,
-    /// Steps that could not be done (the scene is still usable without them).
-    pub warnings: Vec<String>,
     pub seconds: f64,
 }
 
@@ -184,13 +182,7 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
     let n_points = scene.points.len();
     colmap::write_model(&scene, &root.join("sparse/0"), ModelFormat::Binary)?;
 
-    let mut warnings = Vec::new();
-    // TODO(merge main): the nerfstudio writer is a stub on this branch (another helper is
-    // writing it). Once it lands, make this step's error fatal like every other step.
-    if let Err(e) = crate::scene::formats::nerfstudio::write(&scene, &root.join("transforms.json"))
-    {
-        warnings.push(format!("transforms.json not written: {e}"));
-    }
+    crate::scene::formats::nerfstudio::write(&scene, &root.join("transforms.json"))?;
 
     for obj in &world.objects {
         let m = mesh::tessellate(obj);
@@ -240,7 +232,6 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
         points: n_points,
         observations,
         objects,
-        warnings,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
