@@ -1,1 +1,22 @@
 //! Segment Anything (MobileSAM) through ONNX Runtime, and multi-view segmentation.
+//!
+//! - [`models`]: the models directory (`$OBJNERF_HOME`) and `objnerf models install/list`.
+//! - [`sam`]: the [`Segmenter`] (encoder once per image, decoder per prompt set).
+//! - [`prompt`], [`preprocess`], [`mask`]: SAM's inputs and outputs, exactly as SAM defines them.
+//! - [`cache`]: embeddings keyed by image content and model, in memory and on disk.
+//! - [`bench`]: `objnerf bench sam`, ours against Python onnxruntime in the same run.
+
+pub mod bench;
+pub mod cache;
+pub mod mask;
+pub mod models;
+pub mod preprocess;
+pub mod prompt;
+pub mod sam;
+pub mod view;
+
+pub use cache::Embedding;
+pub use mask::{iou, Mask};
+pub use models::ModelsDir;
+pub use prompt::{Point, Prompts};
+pub use sam::{Segmenter, SegmenterOptions};
