@@ -224,6 +224,10 @@ fn run(cli: Cli) -> Result<()> {
                 r.ours.encoder.median, r.python.encoder.median, r.encoder_ratio, r.encoder_goal_met
             );
             println!(
+                "encoder paired ratio (median of per-round ours/Python): {:.3}",
+                r.encoder_paired_ratio
+            );
+            println!(
                 "decoder median: ours {:.1} ms, Python {:.1} ms, ratio {:.3}",
                 r.ours.decoder.median * 1e3,
                 r.python.decoder.median * 1e3,

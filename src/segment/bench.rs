@@ -87,6 +87,9 @@ pub struct BenchReport {
     /// ours / Python, medians.
     pub encoder_ratio: f64,
     pub decoder_ratio: f64,
+    /// Median of the per-round ratios (each round runs both backends back to back, so this is
+    /// the least sensitive to a machine whose load changes over the run).
+    pub encoder_paired_ratio: f64,
     /// The goal: encoder median within 1.1 x Python's.
     pub encoder_goal_met: bool,
     /// Largest absolute difference between the two backends' embeddings of the first image.
@@ -381,6 +384,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
         decoder: Stats::of(&pd),
     };
     let encoder_ratio = ours.encoder.median / python.encoder.median;
+    let paired: Vec<f64> = oe.iter().zip(&pe).map(|(a, b)| a / b).collect();
     let json = opts.out_dir.join("bench_sam.json");
     let chart = opts.out_dir.join("bench_sam.svg");
     let report = BenchReport {
@@ -393,6 +397,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
         runs,
         encoder_ratio,
         decoder_ratio: ours.decoder.median / python.decoder.median,
+        encoder_paired_ratio: Stats::of(&paired).median,
         encoder_goal_met: encoder_ratio <= 1.1,
         embedding_max_abs_diff: diff,
         ours,

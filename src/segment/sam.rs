@@ -24,18 +24,20 @@ static ENV_LOCK: Mutex<()> = Mutex::new(());
 
 /// Load ONNX Runtime from `lib` (once per process) and return the environment.
 pub fn runtime(lib: &Path) -> Result<Environment> {
+    // Checked on every call, even once a library is loaded: a caller naming a library that does
+    // not exist has a broken setup and should hear about it.
+    if !lib.is_file() {
+        return Err(Error::external(
+            "ONNX Runtime library",
+            format!("{} not found; run `{INSTALL_HINT}`", lib.display()),
+        ));
+    }
     if let Some(env) = ENV.get() {
         return Ok(env.clone());
     }
     let _guard = ENV_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(env) = ENV.get() {
         return Ok(env.clone());
-    }
-    if !lib.is_file() {
-        return Err(Error::external(
-            "ONNX Runtime library",
-            format!("{} not found; run `{INSTALL_HINT}`", lib.display()),
-        ));
     }
     // Load the library explicitly rather than through ORT_DYLIB_PATH: setting environment
     // variables in a running (possibly multi-threaded) process is racy, and this way a bad library
