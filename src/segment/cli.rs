@@ -60,6 +60,13 @@ impl ModelsCmd {
                         println!("{:<22} {:<18} {}", s.name, s.action, s.path.display());
                     }
                 }
+                // A partial install must not look like success to a script.
+                if let Some(s) = steps.iter().find(|s| s.action.starts_with("missing")) {
+                    return Err(crate::Error::invalid(format!(
+                        "{} is not installed ({})",
+                        s.name, s.action
+                    )));
+                }
             }
             ModelsCmd::List { json } => {
                 let list = dir.list();
