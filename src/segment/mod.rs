@@ -19,6 +19,7 @@ pub mod preprocess;
 pub mod prompt;
 pub mod propagate;
 pub mod sam;
+pub mod scene_views;
 pub mod view;
 
 pub use cache::Embedding;
