@@ -330,7 +330,9 @@ fn a_non_square_image_maps_prompts_and_masks_back() {
     let crop = image::imageops::crop_imm(&img, 0, y0, 800, h).to_image();
     let t: Vec<bool> = truth[(y0 * 800) as usize..((y0 + h) * 800) as usize].to_vec();
     let (x, y) = distance::most_interior_point(&to_gray(&t, 800, h)).unwrap();
-    let mask = seg.segment(&crop, &Prompts::click(x as f32, y as f32)).unwrap();
+    let mask = seg
+        .segment(&crop, &Prompts::click(x as f32, y as f32))
+        .unwrap();
     assert_eq!((mask.width, mask.height), (800, h));
     let iou = mask.iou(&t);
     println!("lego r_0 rows {y0}..{}: IoU {iou:.4}", y0 + h);

@@ -211,42 +211,8 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
         .tempdir()
         .map_err(|e| Error::io(std::env::temp_dir(), e))?;
 
-    // The library: keep the installed copy if it still matches the hash recorded at install.
-    let lib = dir.library();
-    let recorded = std::fs::read_to_string(sidecar(&lib)).ok();
-    let lib_ok =
-        lib.is_file() && recorded.is_some_and(|r| sha256_file(&lib).is_ok_and(|h| h == r.trim()));
-    if lib_ok {
-        steps.push(step("onnxruntime library", &lib, "already installed"));
-    } else {
-        let pkgs = package_dir(opts, work.path(), "onnxruntime")?;
-        let wheel = find_file(&pkgs, &format!("onnxruntime-{ONNXRUNTIME_VERSION}-"), ".whl")
-            .or_else(|| {
-                pip_download(
-                    &pkgs,
-                    &format!("onnxruntime=={ONNXRUNTIME_VERSION}"),
-                    true,
-                )
-                .ok()?;
-                find_file(&pkgs, &format!("onnxruntime-{ONNXRUNTIME_VERSION}-"), ".whl")
-            })
-            .ok_or_else(|| {
-                Error::external(
-                    "pip",
-                    format!(
-                        "could not get the onnxruntime=={ONNXRUNTIME_VERSION} wheel (tried {} and `pip download`)",
-                        pkgs.display()
-                    ),
-                )
-            })?;
-        let member = format!("onnxruntime/capi/{ONNXRUNTIME_LIB}");
-        extract_with_python(&wheel, &member, &lib, false)?;
-        let h = sha256_file(&lib)?;
-        crate::util::atomic::write_bytes_atomic(&sidecar(&lib), format!("{h}\n").as_bytes())?;
-        steps.push(step("onnxruntime library", &lib, "installed"));
-    }
-
-    // The ONNX files: copied from the folder given, checked against the known hashes.
+    // The ONNX files first: they need no network, so a failing pip still leaves them installed.
+    // Copied from the folder given, checked against the known hashes.
     for (name, dest, sum, file) in [
         (
             "MobileSAM encoder",
@@ -283,6 +249,38 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
         }
         copy_atomic(&src, &dest)?;
         steps.push(step(name, &dest, "installed"));
+    }
+
+    // The library: keep the installed copy if it still matches the hash recorded at install.
+    let lib = dir.library();
+    let recorded = std::fs::read_to_string(sidecar(&lib)).ok();
+    let lib_ok =
+        lib.is_file() && recorded.is_some_and(|r| sha256_file(&lib).is_ok_and(|h| h == r.trim()));
+    if lib_ok {
+        steps.push(step("onnxruntime library", &lib, "already installed"));
+    } else {
+        let pkgs = package_dir(opts, work.path(), "onnxruntime")?;
+        let prefix = format!("onnxruntime-{ONNXRUNTIME_VERSION}-");
+        let wheel = match find_file(&pkgs, &prefix, ".whl") {
+            Some(w) => w,
+            None => {
+                pip_download(&pkgs, &format!("onnxruntime=={ONNXRUNTIME_VERSION}"), true)?;
+                find_file(&pkgs, &prefix, ".whl").ok_or_else(|| {
+                    Error::external(
+                        "pip",
+                        format!(
+                            "pip download left no onnxruntime {ONNXRUNTIME_VERSION} wheel in {}",
+                            pkgs.display()
+                        ),
+                    )
+                })?
+            }
+        };
+        let member = format!("onnxruntime/capi/{ONNXRUNTIME_LIB}");
+        extract_with_python(&wheel, &member, &lib, false)?;
+        let h = sha256_file(&lib)?;
+        crate::util::atomic::write_bytes_atomic(&sidecar(&lib), format!("{h}\n").as_bytes())?;
+        steps.push(step("onnxruntime library", &lib, "installed"));
     }
 
     // The checkpoint: from the sdist, never pip-installed (it would pull torch and a web server).
