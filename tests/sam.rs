@@ -338,3 +338,30 @@ fn a_non_square_image_maps_prompts_and_masks_back() {
     println!("lego r_0 rows {y0}..{}: IoU {iou:.4}", y0 + h);
     assert!(iou >= 0.95, "IoU {iou:.4}");
 }
+
+#[test]
+fn models_install_again_changes_nothing_and_is_fast() {
+    let (Some(dir), Some(onnx)) = (models(), common::shared_model("mobile_sam")) else {
+        return;
+    };
+    let t0 = std::time::Instant::now();
+    let opts = InstallOptions {
+        onnx_dir: Some(onnx),
+        from: None,
+        skip_checkpoint: true,
+    };
+    let steps = install(&dir, &opts).unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    for s in &steps {
+        assert!(
+            s.action == "already installed" || s.action == "skipped",
+            "{}: {}",
+            s.name,
+            s.action
+        );
+    }
+    println!("second install: {secs:.2} s");
+    assert!(secs < 10.0, "{secs} s");
+    let list = dir.list();
+    assert!(list[..3].iter().all(|e| e.status == "ok"), "{list:?}");
+}
