@@ -56,7 +56,7 @@ impl EmbeddingCache {
         EmbeddingCache {
             mem: Mutex::new(HashMap::new()),
             disk,
-            max_in_memory: 256,
+            max_in_memory: 64,
         }
     }
 
