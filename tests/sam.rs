@@ -365,3 +365,28 @@ fn models_install_again_changes_nothing_and_is_fast() {
     let list = dir.list();
     assert!(list[..3].iter().all(|e| e.status == "ok"), "{list:?}");
 }
+
+#[test]
+fn a_small_object_is_sharper_zoomed() {
+    let (Some(seg), Some((img, truth))) = (shared(), lego()) else {
+        return;
+    };
+    // lego shrunk to 160 x 160 on an 800 x 600 white canvas: a small object.
+    let small = image::imageops::resize(&img, 160, 160, image::imageops::FilterType::Triangle);
+    let t = to_gray(&truth, 800, 800);
+    let ts = image::imageops::resize(&t, 160, 160, image::imageops::FilterType::Triangle);
+    let mut canvas = image::RgbImage::from_pixel(800, 600, image::Rgb([255, 255, 255]));
+    image::imageops::replace(&mut canvas, &small, 300, 200);
+    let mut tc = GrayImage::new(800, 600);
+    image::imageops::replace(&mut tc, &ts, 300, 200);
+    let truth: Vec<bool> = tc.pixels().map(|p| p[0] > 127).collect();
+    let (x, y) = distance::most_interior_point(&tc).unwrap();
+    let p = Prompts::click(x as f32, y as f32);
+    let plain = seg.segment(&canvas, &p).unwrap();
+    let zoomed = seg
+        .segment_zoomed(&canvas, &p, &Default::default())
+        .unwrap();
+    let (a, b) = (plain.iou(&truth), zoomed.iou(&truth));
+    println!("small lego: IoU {a:.4} plain, {b:.4} zoomed");
+    assert!(b >= 0.9 && b >= a - 0.01, "plain {a:.4}, zoomed {b:.4}");
+}

@@ -21,6 +21,7 @@ pub mod propagate;
 pub mod sam;
 pub mod scene_views;
 pub mod view;
+pub mod zoom;
 
 pub use cache::Embedding;
 pub use mask::Mask;

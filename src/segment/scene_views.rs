@@ -7,6 +7,7 @@ use super::prompt::{Point, Prompts};
 use super::propagate::{PointPrompt, ViewMask, ViewSegmenter};
 use super::sam::Segmenter;
 use super::view::load_rgb;
+use super::zoom::ZoomOptions;
 use crate::error::Result;
 use crate::scene::Scene;
 use std::sync::Arc;
@@ -16,11 +17,23 @@ pub struct SamViews<'a> {
     /// The last view's embedding: the propagation asks for the same view several times in a row
     /// (one per object), so this skips decoding and hashing the image again.
     last: Option<(usize, Arc<Embedding>)>,
+    /// Re-segment small objects on a crop ([`Segmenter::segment_zoomed`]): sharper edges for one
+    /// more encoder pass per small object and view.
+    zoom: Option<ZoomOptions>,
 }
 
 impl<'a> SamViews<'a> {
     pub fn new(seg: &'a Segmenter) -> Self {
-        SamViews { seg, last: None }
+        SamViews {
+            seg,
+            last: None,
+            zoom: None,
+        }
+    }
+
+    pub fn with_zoom(mut self, zoom: Option<ZoomOptions>) -> Self {
+        self.zoom = zoom;
+        self
     }
 
     fn embedding(&mut self, scene: &Scene, view: usize) -> Result<Arc<Embedding>> {
@@ -59,7 +72,17 @@ impl ViewSegmenter for SamViews<'_> {
             bbox: bbox.map(|b| [b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32]),
             mask_input: None,
         };
-        let m = self.seg.predict_allow_empty(&emb, &p)?;
+        let m = match &self.zoom {
+            // Zooming needs the image and a non-empty first mask; an empty one stays empty.
+            Some(z) => {
+                let img = load_rgb(&scene.images[view].path)?;
+                match self.seg.segment_zoomed(&img, &p, z) {
+                    Ok(m) => m,
+                    Err(_) => self.seg.predict_allow_empty(&emb, &p)?,
+                }
+            }
+            None => self.seg.predict_allow_empty(&emb, &p)?,
+        };
         Ok(ViewMask {
             mask: m.to_image(),
             score: m.score,
