@@ -5,7 +5,9 @@
 
 pub mod demo;
 pub mod error;
+pub mod eval;
 pub mod info;
+pub mod mesh;
 pub mod scene;
 pub mod segment;
 pub mod util;

@@ -40,8 +40,8 @@ enum Command {
         /// Reconstruct from the images even when the input has poses.
         #[arg(long)]
         reconstruct: bool,
-        /// exhaustive or sequential.
-        #[arg(long, default_value = "exhaustive")]
+        /// auto (posed scenes: pairs chosen from the poses; else exhaustive), exhaustive, sequential, pairs.
+        #[arg(long, default_value = "auto")]
         matcher: String,
         /// COLMAP camera model for full reconstruction.
         #[arg(long, default_value = "SIMPLE_RADIAL")]
@@ -67,6 +67,30 @@ enum Command {
     Bench {
         #[command(subcommand)]
         what: objnerf::segment::cli::BenchSamCmd,
+    },
+    /// Write the built-in synthetic scene (four textured objects, a camera ring, a COLMAP model
+    /// with true tracks, and truth masks, depth and meshes).
+    DemoScene {
+        /// Output folder (created; must be empty unless --overwrite).
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Number of views on the camera ring.
+        #[arg(long, default_value_t = 36)]
+        views: usize,
+        /// Image size, WIDTHxHEIGHT.
+        #[arg(long, default_value = "320x240")]
+        size: String,
+        /// Gaussian noise on the 2D features, in pixels.
+        #[arg(long, default_value_t = 0.0)]
+        noise: f64,
+        /// Fraction of 3D points given one wrong observation.
+        #[arg(long, default_value_t = 0.0)]
+        outliers: f64,
+        /// Replace the output folder if it exists.
+        #[arg(long)]
+        overwrite: bool,
     },
 }
 
@@ -128,6 +152,36 @@ fn run(cli: Cli) -> Result<()> {
         Command::Models { action } => action.run(),
         Command::SegmentView(cmd) => cmd.run(),
         Command::Bench { what } => what.run(),
+        Command::DemoScene {
+            out,
+            seed,
+            views,
+            size,
+            noise,
+            outliers,
+            overwrite,
+        } => {
+            let (width, height) = objnerf::demo::parse_size(&size)?;
+            let opts = objnerf::demo::DemoOptions {
+                seed,
+                views,
+                width,
+                height,
+                noise_px: noise,
+                outlier_fraction: outliers,
+                overwrite,
+            };
+            let s = objnerf::demo::write_demo_scene(&opts, &out)?;
+            println!(
+                "wrote {}: {} views, {} points, {} observations in {:.1} s",
+                s.out.display(),
+                s.views,
+                s.points,
+                s.observations,
+                s.seconds
+            );
+            Ok(())
+        }
     }
 }
 

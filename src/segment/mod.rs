@@ -6,7 +6,8 @@
 //! - [`cache`]: embeddings keyed by image content and model, in memory and on disk.
 //! - [`view`]: `objnerf segment-view`; [`bench`]: `objnerf bench sam` (ours against Python
 //!   onnxruntime in the same run).
-//! - [`distance`], [`hull`], [`propagate`]: multi-view segmentation.
+//! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
+//! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation.
 
 pub mod bench;
 pub mod cache;
@@ -15,6 +16,7 @@ pub mod distance;
 pub mod hull;
 pub mod mask;
 pub mod models;
+pub mod output;
 pub mod preprocess;
 pub mod prompt;
 pub mod propagate;
