@@ -424,4 +424,28 @@ fn demo_scene_each_object_one_click_in_view_0() {
         worst = worst.min(iou);
     }
     assert!(worst >= 0.90, "worst IoU {worst:.4} < 0.90");
+
+    // The same through the propagation's interface (the scene read back by `Scene::load`).
+    use objnerf::segment::propagate::{PointPrompt, ViewSegmenter};
+    let scene = objnerf::Scene::load(&out).unwrap();
+    let mut views =
+        objnerf::segment::scene_views::SamViews::new(seg).with_zoom(Some(Default::default()));
+    for o in &objects {
+        let v = scene.find_image(&o.view).unwrap();
+        let p = [PointPrompt {
+            xy: o.click,
+            positive: true,
+        }];
+        let m = views.segment(&scene, v, &p, None).unwrap();
+        let truth = image::open(out.join("truth/masks").join(&o.name).join(&o.view))
+            .unwrap()
+            .to_luma8();
+        let t: Vec<bool> = truth.pixels().map(|p| p[0] > 127).collect();
+        let got: Vec<bool> = m.mask.pixels().map(|p| p[0] > 127).collect();
+        assert!(
+            objnerf::segment::mask::iou(&got, &t) >= 0.90,
+            "{} through SamViews",
+            o.name
+        );
+    }
 }
