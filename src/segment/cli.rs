@@ -157,7 +157,7 @@ pub enum BenchSamCmd {
         #[arg(long, default_value_t = 0)]
         threads: usize,
         /// Where bench_sam.json and bench_sam.svg go.
-        #[arg(long, default_value = "bench-results")]
+        #[arg(long, default_value = "runs/bench")]
         out_dir: PathBuf,
         /// The Python venv to use or create.
         #[arg(long)]
