@@ -70,6 +70,13 @@ enum Command {
     },
     /// Write the built-in synthetic scene (four textured objects, a camera ring, a COLMAP model
     /// with true tracks, and truth masks, depth and meshes).
+    /// The main job on the built-in demo scene: render it with its truth, then describe it.
+    Demo {
+        /// Run folder (its contents are replaced).
+        #[arg(long, default_value = "runs/demo")]
+        out: PathBuf,
+    },
+    /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene {
         /// Output folder (created; must be empty unless --overwrite).
         #[arg(long)]
@@ -152,6 +159,24 @@ fn run(cli: Cli) -> Result<()> {
         Command::Models { action } => action.run(),
         Command::SegmentView(cmd) => cmd.run(),
         Command::Bench { what } => what.run(),
+        Command::Demo { out } => {
+            let scene_dir = out.join("scene");
+            let opts = objnerf::demo::DemoOptions {
+                overwrite: true,
+                ..Default::default()
+            };
+            let s = objnerf::demo::write_demo_scene(&opts, &scene_dir)?;
+            println!(
+                "demo scene: {} views, {} points in {:.1} s -> {}",
+                s.views,
+                s.points,
+                s.seconds,
+                s.out.display()
+            );
+            let scene = Scene::load(&scene_dir)?;
+            print!("{}", objnerf::info::scene_info(&scene).to_text());
+            Ok(())
+        }
         Command::DemoScene {
             out,
             seed,

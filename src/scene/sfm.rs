@@ -234,6 +234,26 @@ pub fn pairs_from_poses(scene: &Scene, k: usize) -> Vec<(usize, usize)> {
     pairs.into_iter().collect()
 }
 
+/// Image name → (image id, camera id) from a COLMAP database.
+fn database_ids(db: &Path) -> Result<std::collections::HashMap<String, (u32, u32)>> {
+    let err = |e: rusqlite::Error| Error::format(db, format!("cannot read COLMAP's database: {e}"));
+    let conn =
+        rusqlite::Connection::open_with_flags(db, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+            .map_err(err)?;
+    let mut stmt = conn
+        .prepare("SELECT image_id, name, camera_id FROM images")
+        .map_err(err)?;
+    let rows = stmt
+        .query_map([], |r| {
+            Ok((
+                r.get::<_, String>(1)?,
+                (r.get::<_, u32>(0)?, r.get::<_, u32>(2)?),
+            ))
+        })
+        .map_err(err)?;
+    rows.collect::<std::result::Result<_, _>>().map_err(err)
+}
+
 /// Where the features of the staged images get matched.
 struct MatchPlan<'a> {
     /// Pairs (indices into `staged`) for a posed scene, or None.
@@ -453,7 +473,7 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             .join(","),
     ];
     if !single {
-        // Per-image cameras: COLMAP numbers them in image order.
+        // One camera per image; the ids come from COLMAP's database below.
         let cams: Vec<_> = known
             .images
             .iter()
@@ -487,6 +507,19 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
         },
         &log,
     )?;
+    // COLMAP numbers images and cameras as its extractor threads finish, not in list order:
+    // take the ids from its database so the known model lines up with it.
+    let ids = database_ids(&work.path().join("database.db"))?;
+    for im in known.images.iter_mut() {
+        let &(image_id, camera_id) = ids.get(&im.name).ok_or_else(|| {
+            Error::external(
+                "colmap feature_extractor",
+                format!("image '{}' is missing from its database", im.name),
+            )
+        })?;
+        im.id = image_id;
+        known.cameras[im.camera].id = camera_id;
+    }
     let input = work.path().join("known");
     colmap::write_model(&known, &input, ModelFormat::Text)?;
     let tri = work.path().join("triangulated");
