@@ -61,6 +61,9 @@ enum Command {
         #[command(subcommand)]
         action: objnerf::segment::cli::ModelsCmd,
     },
+    /// Segment objects in every view from clicks in one (Obj-NeRF's Algorithm 1): masks, segmented
+    /// points, contact sheets and report.json.
+    Segment(objnerf::segment::run::SegmentCmd),
     /// Segment one image with SAM from point and box prompts; writes the mask and an overlay.
     SegmentView(objnerf::segment::cli::SegmentViewCmd),
     /// Benchmarks.
@@ -158,6 +161,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Models { action } => action.run(),
         Command::SegmentView(cmd) => cmd.run(),
+        Command::Segment(cmd) => cmd.run(&std::env::args().collect::<Vec<_>>()),
         Command::Bench { what } => what.run(),
         Command::Demo { out } => {
             let scene_dir = out.join("scene");

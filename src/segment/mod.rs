@@ -20,6 +20,7 @@ pub mod output;
 pub mod preprocess;
 pub mod prompt;
 pub mod propagate;
+pub mod run;
 pub mod sam;
 pub mod scene_views;
 pub mod view;

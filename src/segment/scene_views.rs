@@ -20,6 +20,9 @@ pub struct SamViews<'a> {
     /// Re-segment small objects on a crop ([`Segmenter::segment_zoomed`]): sharper edges for one
     /// more encoder pass per small object and view.
     zoom: Option<ZoomOptions>,
+    /// Time spent in the encoder (with its preprocessing) and in the decoder, seconds.
+    pub encoder_seconds: f64,
+    pub decoder_seconds: f64,
 }
 
 impl<'a> SamViews<'a> {
@@ -28,6 +31,8 @@ impl<'a> SamViews<'a> {
             seg,
             last: None,
             zoom: None,
+            encoder_seconds: 0.0,
+            decoder_seconds: 0.0,
         }
     }
 
@@ -43,7 +48,8 @@ impl<'a> SamViews<'a> {
             }
         }
         let img = load_rgb(&scene.images[view].path)?;
-        let e = self.seg.embed(&img)?;
+        let (e, info) = self.seg.embed_timed(&img)?;
+        self.encoder_seconds += info.encoder_seconds + info.preprocess_seconds;
         self.last = Some((view, e.clone()));
         Ok(e)
     }
@@ -83,6 +89,7 @@ impl ViewSegmenter for SamViews<'_> {
             }
             None => self.seg.predict_allow_empty(&emb, &p)?,
         };
+        self.decoder_seconds += m.decoder_seconds;
         Ok(ViewMask {
             mask: m.to_image(),
             score: m.score,
