@@ -9,7 +9,8 @@ use spade::{DelaunayTriangulation, Point2, Triangulation};
 
 #[derive(Clone, Debug)]
 pub struct HullOptions {
-    /// Alpha (circumradius limit) as a multiple of the median nearest-neighbour spacing.
+    /// Alpha (circumradius limit) as a multiple of the spacing (the 90th percentile of the
+    /// nearest-neighbour distances).
     pub alpha_factor: f64,
     /// A point whose nearest neighbour is farther than this multiple of the median spacing is an
     /// outlier.
@@ -82,7 +83,7 @@ pub fn expected_mask(
 }
 
 /// Delaunay triangulation of the points after removing isolated ones; returns it with the median
-/// nearest-neighbour distance.
+/// nearest-neighbour spacing.
 fn triangulate_without_outliers(
     pts: &[DVec2],
     outlier_factor: f64,
@@ -110,7 +111,10 @@ fn triangulate_without_outliers(
             (p, d)
         })
         .collect();
-    let spacing = median(nn.iter().map(|x| x.1).filter(|d| d.is_finite()).collect())?;
+    // Random samples leave gaps far wider than their median spacing, and overlapping surfaces
+    // crowd some areas: a high quantile of the nearest-neighbour distances measures the gaps
+    // the hull must bridge.
+    let spacing = quantile(nn.iter().map(|x| x.1).filter(|d| d.is_finite()).collect(), 0.9)?;
     if spacing <= 0.0 {
         return None;
     }
@@ -125,12 +129,17 @@ fn triangulate_without_outliers(
     Some((build(&kept)?, spacing))
 }
 
-pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
+pub(crate) fn median(v: Vec<f64>) -> Option<f64> {
+    quantile(v, 0.5)
+}
+
+/// The q-quantile (nearest rank) of the values, `None` when empty.
+pub(crate) fn quantile(mut v: Vec<f64>, q: f64) -> Option<f64> {
     if v.is_empty() {
         return None;
     }
     v.sort_by(|a, b| a.total_cmp(b));
-    Some(v[v.len() / 2])
+    Some(v[((v.len() - 1) as f64 * q).round() as usize])
 }
 
 /// Set to 1 every pixel whose centre lies inside the triangle.

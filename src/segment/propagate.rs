@@ -67,7 +67,7 @@ impl Default for PropagationOptions {
             max_prompts: 8,
             max_negatives: 3,
             edge_margin_px: 3.0,
-            obstruction_iou: 0.6,
+            obstruction_iou: 0.45,
             min_prompts: 1,
             tiny_fraction: 1e-3,
             hull: HullOptions::default(),
@@ -376,6 +376,9 @@ fn classify_views(
             res.flags.push("tiny");
         }
         let (expected, _) = expected_mask(&proj, cam.width, cam.height, &opts.hull);
+        if let Ok(d) = std::env::var("OBJNERF_DEBUG_HULL") {
+            let _ = expected.save(format!("{d}/{}_{v:03}.png", points.len()));
+        }
         let score = iou(mask, &expected);
         res.expected_iou = Some(score);
         if area == 0 {

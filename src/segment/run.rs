@@ -36,7 +36,7 @@ pub struct SegmentCmd {
     #[arg(long, default_value_t = 8)]
     pub prompts: usize,
     /// IoU with the expected (alpha-shape) mask below which a view is obstructed.
-    #[arg(long, default_value_t = 0.6)]
+    #[arg(long, default_value_t = 0.45)]
     pub obstruction_iou: f64,
     /// Replace the output folder if it exists.
     #[arg(long)]
