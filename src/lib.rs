@@ -5,6 +5,7 @@
 
 pub mod demo;
 pub mod error;
+pub mod field;
 pub mod info;
 pub mod scene;
 pub mod segment;
