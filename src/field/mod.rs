@@ -2,12 +2,21 @@
 //! Plenoxels-style spherical-harmonic colour), trained on CPU from masked views.
 //!
 //! Pipeline: [`rays`] turns a scene's views and masks into training rays inside the object's box
-//! (from the masks' visual hull), [`train`] fits the [`model::Field`] with per-voxel Adam,
-//! [`render`] marches rays through it (forward and hand-written backward), [`eval`] scores
-//! held-out views, and [`io`] saves and loads the model file.
+//! (from the masks' visual hull), [`session`] sizes the grid and runs [`train`], which fits the
+//! [`model::Field`] with per-voxel Adam; [`render`] marches rays through it (forward and
+//! hand-written backward), [`eval`] renders and scores views, and [`io`] saves and loads the model.
 
+pub mod eval;
 pub mod grid;
 pub mod model;
+pub mod rays;
 pub mod render;
+pub mod session;
+pub mod synthetic_tmp;
+pub mod train;
 
 pub use model::{Field, FieldConfig};
+pub use rays::{MaskSource, View};
+pub use render::RenderOptions;
+pub use session::{prepare, run, SetupConfig, StopRule};
+pub use train::{TrainConfig, Trainer};

@@ -13,7 +13,7 @@
 use super::model::{sh_basis, sigmoid, softplus, Field};
 use glam::Vec3;
 
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RenderOptions {
     /// Sample spacing in voxels of the current grid.
     pub step: f32,
