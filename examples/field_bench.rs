@@ -23,10 +23,21 @@ fn main() -> objnerf::Result<()> {
         sh_degree: degree,
         ..Default::default()
     };
-    let cfg = TrainConfig {
+    let mut cfg = TrainConfig {
         steps,
         ..Default::default()
     };
+    if let Ok(st) = std::env::var("FIELD_STAGES") {
+        // e.g. "0:0.5,0.3:1"
+        cfg.stages = st
+            .split(',')
+            .filter_map(|p| p.split_once(':'))
+            .map(|(a, b)| (a.parse().unwrap(), b.parse().unwrap()))
+            .collect();
+    }
+    if let Ok(b) = std::env::var("FIELD_BATCH") {
+        cfg.batch = b.parse().unwrap();
+    }
     let t1 = std::time::Instant::now();
     let (mut trainer, rays, report) = field::prepare(&views, &setup, cfg)?;
     let prep_s = t1.elapsed().as_secs_f64();
@@ -58,6 +69,7 @@ fn main() -> objnerf::Result<()> {
         "setup": report, "vertices": trainer.field.grid.num_vertices(),
         "dims": trainer.field.grid.dims,
         "occupied_cells": trainer.field.occupied_cells(),
+        "phase_secs": trainer.phase_secs,
         "memory_mb": trainer.memory_bytes() as f64 / 1048576.0,
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
     });

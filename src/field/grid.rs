@@ -60,11 +60,11 @@ impl Grid {
         let mut base = [0usize; 3];
         let mut frac = [0f32; 3];
         for a in 0..3 {
-            let hi = (self.dims[a] - 2) as f32;
+            // q >= 0 after the clamp, so truncation is floor (and avoids a libm call).
             let q = p[a].clamp(0.0, self.dims[a] as f32 - 1.0);
-            let b = q.floor().min(hi);
-            base[a] = b as usize;
-            frac[a] = q - b;
+            let b = (q as usize).min(self.dims[a] - 2);
+            base[a] = b;
+            frac[a] = q - b as f32;
         }
         (base, frac)
     }

@@ -8,6 +8,7 @@
 
 pub mod eval;
 pub mod grid;
+pub mod io;
 pub mod model;
 pub mod rays;
 pub mod render;

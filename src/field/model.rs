@@ -34,7 +34,15 @@ pub struct Field {
     pub grid: Grid,
     /// One bit per cell (cells are (nx-1)(ny-1)(nz-1), x-fastest): may hold density.
     pub occupancy: Vec<u64>,
+    /// Per block of BLOCK^3 cells: does any cell in it hold density? Lets a ray jump over empty
+    /// blocks instead of testing every sample position. Derived from `occupancy` by
+    /// [`Field::rebuild_blocks`].
+    pub blocks: Vec<bool>,
+    pub block_dims: [usize; 3],
 }
+
+/// Cells per side of an empty-space-skipping block.
+pub const BLOCK: usize = 8;
 
 pub fn sh_coeffs(degree: u32) -> usize {
     ((degree + 1) * (degree + 1)) as usize
@@ -97,8 +105,11 @@ impl Field {
             voxel,
             grid,
             occupancy: Vec::new(),
+            blocks: Vec::new(),
+            block_dims: [0; 3],
         };
         f.fill_occupancy(true);
+        f.rebuild_blocks();
         f
     }
 
@@ -147,6 +158,25 @@ impl Field {
         }
     }
 
+    /// Recompute the block map from the cell occupancy (call after changing occupancy).
+    pub fn rebuild_blocks(&mut self) {
+        let d = self.grid.dims;
+        let cd = [d[0] - 1, d[1] - 1, d[2] - 1];
+        let bd = cd.map(|c| c.div_ceil(BLOCK));
+        let mut blocks = vec![false; bd[0] * bd[1] * bd[2]];
+        for z in 0..cd[2] {
+            for y in 0..cd[1] {
+                for x in 0..cd[0] {
+                    if self.occupied(self.cell_index([x, y, z])) {
+                        blocks[x / BLOCK + bd[0] * (y / BLOCK + bd[1] * (z / BLOCK))] = true;
+                    }
+                }
+            }
+        }
+        self.blocks = blocks;
+        self.block_dims = bd;
+    }
+
     pub fn occupied_cells(&self) -> usize {
         let n = self.num_cells();
         (0..n).filter(|&c| self.occupied(c)).count()
@@ -192,6 +222,7 @@ impl Field {
                 }
             }
         }
+        self.rebuild_blocks();
     }
 
     /// World point to grid units.
@@ -232,6 +263,7 @@ impl Field {
                 }
             }
         }
+        self.rebuild_blocks();
     }
 
     /// Bytes held by the parameters (not counting optimiser state).

@@ -10,7 +10,7 @@
 //! (normalised by its transmittance): this needs no division by (1 - a_i), so it stays exact when
 //! a sample is opaque.
 
-use super::model::{sh_basis, sigmoid, softplus, Field};
+use super::model::{sh_basis, sigmoid, softplus, Field, BLOCK};
 use glam::Vec3;
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -106,10 +106,32 @@ pub fn forward(
     let ch = f.grid.channels;
     let mut trans = 1.0f32;
     let mut feat = [0f32; 28];
-    let mut t = tn + jitter * step_w;
+    let t0 = tn + jitter * step_w;
+    let mut t = t0;
+    let bd = f.block_dims;
+    let inv_dg = dg.recip();
     while t < tf {
         let p = og + dg * t;
         let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
+        let bb = [b[0] / BLOCK, b[1] / BLOCK, b[2] / BLOCK];
+        if !f.blocks[bb[0] + bd[0] * (bb[1] + bd[1] * bb[2])] {
+            // Jump to the first sample of the lattice t0 + k * step past this block's exit, so
+            // the samples taken are the same as without skipping.
+            let mut t_exit = f32::MAX;
+            for a in 0..3 {
+                let lo = (bb[a] * BLOCK) as f32;
+                let hi = ((bb[a] + 1) * BLOCK).min(dims[a] - 1) as f32;
+                let bound = if inv_dg[a] > 0.0 { hi } else { lo };
+                let te = (bound - og[a]) * inv_dg[a];
+                if te.is_finite() {
+                    t_exit = t_exit.min(te);
+                }
+            }
+            let k = ((t_exit - t0) / step_w).ceil();
+            let next = t0 + k * step_w;
+            t = if next > t { next } else { t + step_w };
+            continue;
+        }
         let cell = f.cell_index(b);
         if f.occupied(cell) {
             let kc = f.grid.corners_of(b, fr);

@@ -93,6 +93,7 @@ pub fn prepare(
     for (c, &k) in keep.iter().enumerate() {
         field.set_occupied(c, k);
     }
+    field.rebuild_blocks();
     let hull_cells = keep.iter().filter(|&&k| k).count();
     let rays = RaySet::build(views, lo, field.box_max);
     let report = SetupReport {

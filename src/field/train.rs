@@ -86,11 +86,14 @@ pub struct Trainer {
     /// Step (+1) at which a vertex was last touched, to list touched vertices without clearing.
     stamp: Vec<u32>,
     adam_t: u32,
-    records: Vec<Vec<f32>>,
+    /// Per chunk, per z-slab: the gradient records of samples whose cell touches that slab.
+    records: Vec<Vec<Vec<f32>>>,
     /// Fraction of a time budget used so far: the schedule follows whichever of step and time
     /// progress is further along, so a short budget still reaches the finest grid. Left at 0
     /// (no budget), training depends on the seed alone.
     pub time_frac: f32,
+    /// Seconds spent in (forward + backward, gradient scatter, TV + Adam, occupancy pruning).
+    pub phase_secs: [f64; 4],
 }
 
 /// Stage dims: (final - 1) * scale + 1 per axis (final - 1 is a multiple of 4, so 1/2 and 1/4
@@ -115,6 +118,7 @@ impl Trainer {
             adam_t: 0,
             records: Vec::new(),
             time_frac: 0.0,
+            phase_secs: [0.0; 4],
         };
         t.reset_state();
         t
@@ -190,13 +194,19 @@ impl Trainer {
         self.maybe_grow();
         let cfg = self.cfg.clone();
         let step = self.step;
+        let clock = std::time::Instant::now();
         let mut rng = Rng::fork(cfg.seed, step as u64);
-        let picks: Vec<(u32, u32)> = (0..cfg.batch)
+        let mut picks: Vec<(u32, u32)> = (0..cfg.batch)
             .map(|_| rays.rays[rng.below(rays.rays.len())])
             .collect();
+        // Rays of one view and nearby pixels cross the same voxels: ordering the batch keeps a
+        // chunk's grid reads in cache. The sum over the batch does not depend on the order.
+        picks.sort_unstable();
         let nchunks = picks.len().div_ceil(CHUNK);
         self.records.resize_with(nchunks, Vec::new);
+        let (nslabs, zper) = self.slabs();
         let field = &self.field;
+        let plane = field.grid.dims[0] * field.grid.dims[1];
         let ch = field.grid.channels;
         let stride = ch + 4;
         let inv_b = 1.0 / picks.len() as f32;
@@ -206,7 +216,8 @@ impl Trainer {
             .zip(picks.par_chunks(CHUNK))
             .enumerate()
             .map(|(ci, (rec, chunk))| {
-                rec.clear();
+                rec.resize_with(nslabs, Vec::new);
+                rec.iter_mut().for_each(|r| r.clear());
                 let mut samples: Vec<Sample> = Vec::with_capacity(512);
                 let (mut loss, mut mse, mut nsamp) = (0f64, 0f64, 0usize);
                 for (ri, &(vi, px)) in chunk.iter().enumerate() {
@@ -237,9 +248,13 @@ impl Trainer {
                         continue;
                     }
                     backward(field, &cfg.render, d, bg, &samples, g, ga, 0.0, |s, gr| {
-                        rec.push(f32::from_bits(s.base));
-                        rec.extend_from_slice(&s.frac);
-                        rec.extend_from_slice(gr);
+                        let z = s.base as usize / plane;
+                        let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
+                        for b in &mut rec[sa..=sb] {
+                            b.push(f32::from_bits(s.base));
+                            b.extend_from_slice(&s.frac);
+                            b.extend_from_slice(gr);
+                        }
                     });
                 }
                 (loss, mse, nsamp)
@@ -248,10 +263,13 @@ impl Trainer {
         let (loss, mse, nsamp) = stats.iter().fold((0.0, 0.0, 0), |a, s| {
             (a.0 + s.0, a.1 + s.1, a.2 + s.2)
         });
+        self.phase_secs[0] += clock.elapsed().as_secs_f64();
         self.apply_gradients(stride);
         self.step += 1;
         if cfg.prune_every > 0 && self.step % cfg.prune_every == 0 {
+            let c = std::time::Instant::now();
             self.prune();
+            self.phase_secs[3] += c.elapsed().as_secs_f64();
         }
         let n = picks.len() as f64;
         StepStats {
@@ -262,15 +280,24 @@ impl Trainer {
         }
     }
 
+    /// How the grid's z-layers are split for the scatter: (slab count, layers per slab). Depends
+    /// on the thread count, which does not change the sums (see the module notes).
+    fn slabs(&self) -> (usize, usize) {
+        let nz = self.field.grid.dims[2];
+        let want = (rayon::current_num_threads() * 2).clamp(1, nz);
+        let zper = nz.div_ceil(want);
+        (nz.div_ceil(zper), zper)
+    }
+
     /// Scatter the records into the gradient by z-slabs, add TV, and take an Adam step on the
     /// touched vertices only.
     fn apply_gradients(&mut self, stride: usize) {
         let dims = self.field.grid.dims;
         let ch = self.field.grid.channels;
         let plane = dims[0] * dims[1];
-        let nslabs = (rayon::current_num_threads() * 2).clamp(1, dims[2]);
-        let zper = dims[2].div_ceil(nslabs);
+        let (_, zper) = self.slabs();
         let stamp_id = self.step as u32 + 1;
+        let clock = std::time::Instant::now();
         let records = &self.records;
         let field = &self.field;
         let (sx, sy, sz) = (1usize, dims[0], plane);
@@ -286,7 +313,7 @@ impl Trainer {
                 let v1 = v0 + stslab.len();
                 let mut list = Vec::new();
                 for rec in records {
-                    for r in rec.chunks_exact(stride) {
+                    for r in rec[si].chunks_exact(stride) {
                         let base = r[0].to_bits() as usize;
                         let bz = base / plane;
                         if bz + 1 < z0 || bz >= z0 + stslab.len() / plane {
@@ -315,10 +342,16 @@ impl Trainer {
                         }
                     }
                 }
+                // Ascending order turns the optimiser's pass into a forward sweep of memory
+                // (first-touch order is random and was cache-miss bound).
+                list.sort_unstable();
                 list
             })
             .collect();
+        self.phase_secs[1] += clock.elapsed().as_secs_f64();
+        let clock = std::time::Instant::now();
         self.tv_and_adam(&touched, zper * plane);
+        self.phase_secs[2] += clock.elapsed().as_secs_f64();
     }
 
     fn tv_and_adam(&mut self, touched: &[Vec<u32>], slab_vertices: usize) {
