@@ -6,6 +6,7 @@
 //! [`model::Field`] with per-voxel Adam; [`render`] marches rays through it (forward and
 //! hand-written backward), [`eval`] renders and scores views, and [`io`] saves and loads the model.
 
+pub mod commands;
 pub mod eval;
 pub mod grid;
 pub mod io;

@@ -133,6 +133,33 @@ impl Trainer {
         self.adam_t = 0;
     }
 
+    /// Continue from a saved model: its grid, step and (if saved) optimiser state. The saved
+    /// training settings win over `cfg` except for the step count, so a resumed run follows the
+    /// same schedule.
+    pub fn from_model(m: super::io::Model, cfg: TrainConfig) -> Trainer {
+        let mut c = m.train.clone().unwrap_or(cfg.clone());
+        c.steps = c.steps.max(cfg.steps);
+        let mut t = Trainer::new(m.field, m.final_dims, c);
+        t.step = m.step;
+        if let Some((am, av, at)) = m.adam {
+            t.set_adam_state(am, av, at);
+        }
+        t
+    }
+
+    /// A model file's content for this trainer (with optimiser state, so it can resume).
+    pub fn to_model(&self, world: [[f64; 4]; 4], notes: serde_json::Value) -> super::io::Model {
+        super::io::Model {
+            field: self.field.clone(),
+            final_dims: self.final_dims,
+            world_transform: world,
+            train: Some(self.cfg.clone()),
+            step: self.step,
+            adam: Some((self.m.clone(), self.v.clone(), self.adam_t)),
+            notes,
+        }
+    }
+
     /// Optimiser state (m, v, step count) for saving a resumable model.
     pub fn adam_state(&self) -> (&[f32], &[f32], u32) {
         (&self.m, &self.v, self.adam_t)
