@@ -8,7 +8,11 @@ use std::path::PathBuf;
 
 fn main() -> objnerf::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let dir = PathBuf::from(args.get(1).map(String::as_str).unwrap_or("../shared/data/lego"));
+    let dir = PathBuf::from(
+        args.get(1)
+            .map(String::as_str)
+            .unwrap_or("../shared/data/lego"),
+    );
     let ds: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(4);
     let secs: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(120.0);
     let degree: u32 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1);
@@ -34,6 +38,22 @@ fn main() -> objnerf::Result<()> {
             .filter_map(|p| p.split_once(':'))
             .map(|(a, b)| (a.parse().unwrap(), b.parse().unwrap()))
             .collect();
+    }
+    if let Ok(b) = std::env::var("FIELD_PRUNE") {
+        cfg.prune_every = b.parse().unwrap();
+    }
+    if let Ok(b) = std::env::var("FIELD_TV") {
+        let (a, c) = b.split_once(',').unwrap();
+        cfg.tv_density = a.parse().unwrap();
+        cfg.tv_color = c.parse().unwrap();
+    }
+    if let Ok(b) = std::env::var("FIELD_STEP") {
+        cfg.render.step = b.parse().unwrap();
+    }
+    if let Ok(b) = std::env::var("FIELD_LR") {
+        let (a, c) = b.split_once(',').unwrap();
+        cfg.lr_density = a.parse().unwrap();
+        cfg.lr_color = c.parse().unwrap();
     }
     if let Ok(b) = std::env::var("FIELD_BATCH") {
         cfg.batch = b.parse().unwrap();

@@ -75,20 +75,21 @@ pub struct TrainReport {
     pub dims: [usize; 3],
     pub memory_bytes: usize,
     pub occupied_cells: usize,
+    pub depth_targets: usize,
 }
 
 /// Train a field on a scene's views and save it; `progress(stats, seconds, rays_per_second)`.
 pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Result<TrainReport> {
-    if args.depth != DepthMode::None {
-        return Err(Error::invalid(
-            "--depth sparse/dense is not built yet in this version; use --depth none",
-        ));
-    }
     if args.downscale == 0 {
         return Err(Error::invalid("--downscale must be at least 1"));
     }
     let scene = super::synthetic_tmp::load_scene(&args.scene)?;
-    let views = load_views(&scene, &args.masks, args.downscale)?;
+    let mut views = load_views(&scene, &args.masks, args.downscale)?;
+    let depth_targets = match args.depth {
+        DepthMode::None => 0,
+        DepthMode::Sparse => super::depth::add_sparse_depth(&mut views, &scene, args.downscale)?,
+        DepthMode::Dense => super::depth::add_dense_depth(&mut views, &scene, args.downscale)?,
+    };
     if views.is_empty() {
         return Err(Error::invalid("the scene has no views to train on"));
     }
@@ -120,6 +121,8 @@ pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Res
         "setup": setup,
         "run": summary,
         "scene": args.scene,
+        "depth": format!("{:?}", args.depth),
+        "depth_targets": depth_targets,
     });
     io::save(&args.out, &trainer.to_model(IDENTITY, notes))?;
     Ok(TrainReport {
@@ -129,6 +132,7 @@ pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Res
         dims: trainer.field.grid.dims,
         memory_bytes: trainer.memory_bytes(),
         occupied_cells: trainer.field.occupied_cells(),
+        depth_targets,
     })
 }
 
@@ -179,11 +183,16 @@ pub fn render(model: &Path, scene: &Path, out: &Path, downscale: Option<u32>) ->
             image::Rgb(p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
         });
         let alpha = image::GrayImage::from_fn(r.width, r.height, |x, y| {
-            image::Luma([(r.alpha[(y * r.width + x) as usize].clamp(0.0, 1.0) * 255.0).round() as u8])
+            image::Luma([
+                (r.alpha[(y * r.width + x) as usize].clamp(0.0, 1.0) * 255.0).round() as u8,
+            ])
         });
-        let depth = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(r.width, r.height, |x, y| {
-            image::Luma([(r.depth[(y * r.width + x) as usize] * 1000.0).round().clamp(0.0, 65535.0) as u16])
-        });
+        let depth =
+            image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(r.width, r.height, |x, y| {
+                image::Luma([(r.depth[(y * r.width + x) as usize] * 1000.0)
+                    .round()
+                    .clamp(0.0, 65535.0) as u16])
+            });
         let save = |name: String, img: image::DynamicImage| {
             crate::util::atomic::save_image_atomic(&dir.path().join(name), &img)
         };

@@ -28,7 +28,11 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) ->
                 .map(|x| {
                     let (o, d) = view.ray(y * w + x);
                     let r = render_ray(f, opt, o, d, bg, &mut scratch);
-                    let depth = if r.alpha > 1e-3 { r.depth / r.alpha } else { 0.0 };
+                    let depth = if r.alpha > 1e-3 {
+                        r.depth / r.alpha
+                    } else {
+                        0.0
+                    };
                     (r.alpha, depth, r.rgb, 0.0)
                 })
                 .collect()
@@ -64,11 +68,7 @@ pub fn psnr(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     let mse: f64 = a
         .iter()
         .zip(b)
-        .map(|(x, y)| {
-            (0..3)
-                .map(|c| ((x[c] - y[c]) as f64).powi(2))
-                .sum::<f64>()
-        })
+        .map(|(x, y)| (0..3).map(|c| ((x[c] - y[c]) as f64).powi(2)).sum::<f64>())
         .sum::<f64>()
         / (3 * a.len().max(1)) as f64;
     -10.0 * mse.max(1e-20).log10()

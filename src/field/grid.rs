@@ -207,7 +207,12 @@ mod tests {
     fn trilinear_reproduces_linear_functions_and_vertices() {
         let g = ramp();
         let mut out = [0.0; 2];
-        for p in [[0.3, 1.7, 2.2], [3.0, 2.0, 4.0], [0.0, 0.0, 0.0], [2.5, 0.5, 3.9]] {
+        for p in [
+            [0.3, 1.7, 2.2],
+            [3.0, 2.0, 4.0],
+            [0.0, 0.0, 0.0],
+            [2.5, 0.5, 3.9],
+        ] {
             g.sample(p, &mut out);
             let want = 1.0 + 2.0 * p[0] - 0.5 * p[1] + 3.0 * p[2];
             assert!((out[0] - want).abs() < 1e-5, "{p:?}: {} vs {want}", out[0]);

@@ -93,8 +93,18 @@ fn hex(d: &[u8]) -> String {
 pub fn save(path: &Path, m: &Model) -> Result<()> {
     let f = &m.field;
     let mut blobs: Vec<(&str, &str, u64, Vec<u8>)> = vec![
-        ("grid", "f32", f.grid.data.len() as u64, f32_bytes(&f.grid.data)),
-        ("occupancy", "u64", f.occupancy.len() as u64, u64_bytes(&f.occupancy)),
+        (
+            "grid",
+            "f32",
+            f.grid.data.len() as u64,
+            f32_bytes(&f.grid.data),
+        ),
+        (
+            "occupancy",
+            "u64",
+            f.occupancy.len() as u64,
+            u64_bytes(&f.occupancy),
+        ),
     ];
     if let Some((am, av, _)) = &m.adam {
         blobs.push(("adam_m", "f32", am.len() as u64, f32_bytes(am)));
@@ -165,7 +175,10 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Model> {
     let h: Header = serde_json::from_slice(&bytes[16..hend])
         .map_err(|e| bad(format!("corrupt header: {e}")))?;
     if h.format != "objnerf-field" {
-        return Err(bad(format!("header format is '{}', not objnerf-field", h.format)));
+        return Err(bad(format!(
+            "header format is '{}', not objnerf-field",
+            h.format
+        )));
     }
     if h.version > VERSION {
         return Err(bad(format!(
@@ -180,7 +193,10 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Model> {
         )));
     }
     if h.dims.iter().any(|&d| d < 2) || !(h.voxel > 0.0) {
-        return Err(bad(format!("inconsistent header: dims {:?}, voxel {}", h.dims, h.voxel)));
+        return Err(bad(format!(
+            "inconsistent header: dims {:?}, voxel {}",
+            h.dims, h.voxel
+        )));
     }
     let nv: usize = h.dims.iter().product();
     let ncells: usize = h.dims.iter().map(|d| d - 1).product();
@@ -205,7 +221,10 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Model> {
             })?;
         let data = &bytes[pos..pos + n];
         if hex(&Sha256::digest(data)) != a.sha256 {
-            return Err(bad(format!("corrupt: array '{}' fails its SHA-256 check", a.name)));
+            return Err(bad(format!(
+                "corrupt: array '{}' fails its SHA-256 check",
+                a.name
+            )));
         }
         arrays.insert(a.name.clone(), data);
         pos += n;

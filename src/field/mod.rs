@@ -7,6 +7,7 @@
 //! hand-written backward), [`eval`] renders and scores views, and [`io`] saves and loads the model.
 
 pub mod commands;
+pub mod depth;
 pub mod eval;
 pub mod grid;
 pub mod io;

@@ -241,14 +241,15 @@ impl Field {
     pub fn upsample(&mut self, dims: [usize; 3]) {
         let old = self.clone();
         self.grid = self.grid.resampled(dims);
-        self.voxel = (self.box_max - self.box_min).max_element()
-            / (dims.iter().max().unwrap() - 1) as f32;
+        self.voxel =
+            (self.box_max - self.box_min).max_element() / (dims.iter().max().unwrap() - 1) as f32;
         // The box is re-derived from the dims so that vertices still span it exactly.
-        self.box_max = self.box_min + Vec3::new(
-            (dims[0] - 1) as f32,
-            (dims[1] - 1) as f32,
-            (dims[2] - 1) as f32,
-        ) * self.voxel;
+        self.box_max = self.box_min
+            + Vec3::new(
+                (dims[0] - 1) as f32,
+                (dims[1] - 1) as f32,
+                (dims[2] - 1) as f32,
+            ) * self.voxel;
         self.fill_occupancy(false);
         for z in 0..dims[2] - 1 {
             for y in 0..dims[1] - 1 {

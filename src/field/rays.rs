@@ -30,6 +30,8 @@ pub struct View {
     pub height: u32,
     /// Premultiplied RGB and alpha (the mask), row-major.
     pub rgba: Vec<[u8; 4]>,
+    /// Depth targets per pixel as distance along the unit ray (0 = none), when supervised.
+    pub depth: Option<Vec<f32>>,
     rot: Mat3,
     center: Vec3,
     intr: [f32; 4],
@@ -51,7 +53,16 @@ impl View {
             camera,
             pose,
             rgba,
+            depth: None,
         }
+    }
+
+    /// The length of the camera-frame ray through pixel `idx` with z = 1: a z-depth times this
+    /// is the distance along the unit ray.
+    pub fn ray_scale(&self, idx: u32) -> f32 {
+        let (_, d) = self.ray(idx);
+        let z = (self.rot.transpose() * d).z;
+        1.0 / z.max(1e-6)
     }
 
     /// World origin and unit direction of the ray through the centre of pixel `idx` (row-major).
@@ -218,7 +229,7 @@ fn dilated_mask(v: &View, radius: i32) -> Vec<bool> {
 }
 
 /// The masks' visual hull sampled at cell centres of a `dims` grid over [lo, hi]: a cell is kept
-/// when no view sees its centre on the background and at least `min_seen` views see it at all.
+/// when no view sees its centre on the background and at least half the views see it at all.
 /// Masks are dilated by the cell's pixel footprint so thin parts are not carved.
 pub fn visual_hull(views: &[View], lo: Vec3, hi: Vec3, dims: [usize; 3]) -> Vec<bool> {
     let cell = (hi - lo) / Vec3::new(dims[0] as f32, dims[1] as f32, dims[2] as f32);
@@ -232,30 +243,34 @@ pub fn visual_hull(views: &[View], lo: Vec3, hi: Vec3, dims: [usize; 3]) -> Vec<
             (dilated_mask(v, r.min(64)), r)
         })
         .collect();
-    let min_seen = (views.len() / 4).max(1);
+    // A point seen by few views is barely constrained (a long cone behind each silhouette):
+    // require half of them.
+    let min_seen = views.len().div_ceil(2).max(views.len().min(2));
     let plane = dims[0] * dims[1];
     let mut keep = vec![false; plane * dims[2]];
-    keep.par_chunks_mut(plane).enumerate().for_each(|(z, slab)| {
-        for y in 0..dims[1] {
-            for x in 0..dims[0] {
-                let p = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
-                let mut seen = 0;
-                let mut carved = false;
-                for (v, (m, _)) in views.iter().zip(&masks) {
-                    let Some((u, w)) = v.project(p) else { continue };
-                    if u < 0.0 || w < 0.0 || u >= v.width as f32 || w >= v.height as f32 {
-                        continue;
+    keep.par_chunks_mut(plane)
+        .enumerate()
+        .for_each(|(z, slab)| {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let p = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
+                    let mut seen = 0;
+                    let mut carved = false;
+                    for (v, (m, _)) in views.iter().zip(&masks) {
+                        let Some((u, w)) = v.project(p) else { continue };
+                        if u < 0.0 || w < 0.0 || u >= v.width as f32 || w >= v.height as f32 {
+                            continue;
+                        }
+                        seen += 1;
+                        if !m[(w as u32 * v.width + u as u32) as usize] {
+                            carved = true;
+                            break;
+                        }
                     }
-                    seen += 1;
-                    if !m[(w as u32 * v.width + u as u32) as usize] {
-                        carved = true;
-                        break;
-                    }
+                    slab[x + dims[0] * y] = !carved && seen >= min_seen;
                 }
-                slab[x + dims[0] * y] = !carved && seen >= min_seen;
             }
-        }
-    });
+        });
     keep
 }
 
@@ -346,6 +361,9 @@ pub fn choose_voxel(
 pub struct RaySet {
     pub rays: Vec<(u32, u32)>,
     pub total: usize,
+    /// Kept rays that carry a depth target (drawn in addition to the colour batch, since sparse
+    /// depth pixels are too rare to be hit by uniform sampling).
+    pub depth_rays: Vec<(u32, u32)>,
 }
 
 impl RaySet {
@@ -364,9 +382,21 @@ impl RaySet {
             })
             .collect();
         let total = views.iter().map(|v| (v.width * v.height) as usize).sum();
+        let rays: Vec<(u32, u32)> = per.into_iter().flatten().collect();
+        let depth_rays = rays
+            .iter()
+            .copied()
+            .filter(|&(vi, p)| {
+                views[vi as usize]
+                    .depth
+                    .as_ref()
+                    .is_some_and(|d| d[p as usize] > 0.0)
+            })
+            .collect();
         RaySet {
-            rays: per.into_iter().flatten().collect(),
+            rays,
             total,
+            depth_rays,
         }
     }
 

@@ -263,19 +263,37 @@ mod tests {
 
     /// Loss used by the gradient check: a fixed linear functional of (rgb, alpha, depth).
     fn loss(out: &RayOut) -> f64 {
-        0.7 * out.rgb[0] as f64 - 1.1 * out.rgb[1] as f64 + 0.4 * out.rgb[2] as f64
+        0.7 * out.rgb[0] as f64 - 1.1 * out.rgb[1] as f64
+            + 0.4 * out.rgb[2] as f64
             + 0.9 * out.alpha as f64
             + 0.3 * out.depth as f64
     }
 
     #[test]
     fn ray_box_hits_and_misses() {
-        let (a, b) = ray_box(Vec3::new(0.0, 0.0, -5.0), Vec3::Z, Vec3::splat(-1.0), Vec3::ONE)
-            .unwrap();
+        let (a, b) = ray_box(
+            Vec3::new(0.0, 0.0, -5.0),
+            Vec3::Z,
+            Vec3::splat(-1.0),
+            Vec3::ONE,
+        )
+        .unwrap();
         assert!((a - 4.0).abs() < 1e-6 && (b - 6.0).abs() < 1e-6);
-        assert!(ray_box(Vec3::new(3.0, 0.0, -5.0), Vec3::Z, Vec3::splat(-1.0), Vec3::ONE).is_none());
+        assert!(ray_box(
+            Vec3::new(3.0, 0.0, -5.0),
+            Vec3::Z,
+            Vec3::splat(-1.0),
+            Vec3::ONE
+        )
+        .is_none());
         // Axis-parallel ray inside the slab of the other axes.
-        assert!(ray_box(Vec3::new(0.5, 0.5, -5.0), Vec3::Z, Vec3::splat(-1.0), Vec3::ONE).is_some());
+        assert!(ray_box(
+            Vec3::new(0.5, 0.5, -5.0),
+            Vec3::Z,
+            Vec3::splat(-1.0),
+            Vec3::ONE
+        )
+        .is_some());
     }
 
     /// The hand-written backward against central finite differences of the forward, over every
@@ -299,15 +317,25 @@ mod tests {
             let mut grad = vec![0f32; f0.grid.data.len()];
             let nx = f0.grid.dims[0] as u32;
             let ny = f0.grid.dims[1] as u32;
-            backward(&f0, &opt, d, bg, &samples, [0.7, -1.1, 0.4], 0.9, 0.3, |s, g| {
-                let z = s.base / (nx * ny);
-                let y = (s.base / nx) % ny;
-                let x = s.base % nx;
-                let k = f0
-                    .grid
-                    .corners_of([x as usize, y as usize, z as usize], s.frac);
-                super::super::grid::Grid::scatter(&mut grad, ch, &k, g);
-            });
+            backward(
+                &f0,
+                &opt,
+                d,
+                bg,
+                &samples,
+                [0.7, -1.1, 0.4],
+                0.9,
+                0.3,
+                |s, g| {
+                    let z = s.base / (nx * ny);
+                    let y = (s.base / nx) % ny;
+                    let x = s.base % nx;
+                    let k = f0
+                        .grid
+                        .corners_of([x as usize, y as usize, z as usize], s.frac);
+                    super::super::grid::Grid::scatter(&mut grad, ch, &k, g);
+                },
+            );
             let _ = out;
             let mut checked = 0;
             let mut worst = 0.0f64;
@@ -333,7 +361,9 @@ mod tests {
                 }
             }
             assert!(checked > 20, "only {checked} parameters touched");
-            eprintln!("degree {degree}: {checked} parameters checked, worst rel. error {worst:.2e}");
+            eprintln!(
+                "degree {degree}: {checked} parameters checked, worst rel. error {worst:.2e}"
+            );
         }
     }
 }

@@ -71,11 +71,12 @@ pub fn prepare(
     // Final cells per axis rounded up to a multiple of 4 so coarse stages nest exactly.
     let e = hi - lo;
     let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
-    let hi = lo + Vec3::new(
-        (final_dims[0] - 1) as f32,
-        (final_dims[1] - 1) as f32,
-        (final_dims[2] - 1) as f32,
-    ) * voxel;
+    let hi = lo
+        + Vec3::new(
+            (final_dims[0] - 1) as f32,
+            (final_dims[1] - 1) as f32,
+            (final_dims[2] - 1) as f32,
+        ) * voxel;
     let first_scale = cfg.stages.first().map(|s| s.1).unwrap_or(1.0);
     let dims0 = stage_dims(final_dims, first_scale);
     let mut field = Field::new(

@@ -54,7 +54,10 @@ fn read_nerf_synthetic(path: &Path) -> Result<Scene> {
     for (i, fr) in t.frames.iter().enumerate() {
         let m = &fr.transform_matrix;
         if m.len() < 3 || m.iter().take(3).any(|r| r.len() != 4) {
-            return Err(Error::format(path, format!("frame {i}: transform_matrix is not 4x4")));
+            return Err(Error::format(
+                path,
+                format!("frame {i}: transform_matrix is not 4x4"),
+            ));
         }
         let rows = [0, 1, 2].map(|r| [m[r][0], m[r][1], m[r][2], m[r][3]]);
         let pose = Pose::from_c2w_opengl(rows).map_err(|e| Error::format(path, e))?;

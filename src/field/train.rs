@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct TrainConfig {
     pub seed: u64,
     /// Rays per step.
@@ -33,6 +34,10 @@ pub struct TrainConfig {
     /// Weight of the squared alpha error (the colour loss on a random background already
     /// supervises alpha; this sharpens the silhouette).
     pub alpha_weight: f32,
+    /// Weight of the squared error of the expected ray depth against depth targets (lambda_d),
+    /// and how many rays with a depth target are added to each batch.
+    pub depth_weight: f32,
+    pub depth_batch: usize,
     /// Coarse-to-fine: (fraction of `steps`, grid scale per axis), scales rising to 1.
     pub stages: Vec<(f32, f32)>,
     /// Re-derive the occupancy grid every this many steps.
@@ -54,6 +59,8 @@ impl Default for TrainConfig {
             tv_density: 0.0,
             tv_color: 0.0,
             alpha_weight: 0.1,
+            depth_weight: 0.1,
+            depth_batch: 1024,
             stages: vec![(0.0, 0.5), (0.3, 1.0)],
             prune_every: 100,
             render: RenderOptions::default(),
@@ -176,7 +183,8 @@ impl Trainer {
 
     /// Bytes of parameters and optimiser state.
     pub fn memory_bytes(&self) -> usize {
-        self.field.param_bytes() + (self.grad.len() + self.m.len() + self.v.len()) * 4
+        self.field.param_bytes()
+            + (self.grad.len() + self.m.len() + self.v.len()) * 4
             + self.stamp.len() * 4
     }
 
@@ -213,7 +221,8 @@ impl Trainer {
 
     fn prune(&mut self) {
         let delta = self.cfg.render.step * self.field.voxel / self.field.config.base_voxel;
-        self.field.prune_occupancy(delta, self.cfg.render.alpha_thresh);
+        self.field
+            .prune_occupancy(delta, self.cfg.render.alpha_thresh);
     }
 
     /// One optimisation step on `batch` rays drawn from `rays`.
@@ -226,6 +235,11 @@ impl Trainer {
         let mut picks: Vec<(u32, u32)> = (0..cfg.batch)
             .map(|_| rays.rays[rng.below(rays.rays.len())])
             .collect();
+        if cfg.depth_weight > 0.0 && !rays.depth_rays.is_empty() {
+            for _ in 0..cfg.depth_batch {
+                picks.push(rays.depth_rays[rng.below(rays.depth_rays.len())]);
+            }
+        }
         // Rays of one view and nearby pixels cross the same voxels: ordering the batch keeps a
         // chunk's grid reads in cache. The sum over the batch does not depend on the order.
         picks.sort_unstable();
@@ -271,10 +285,18 @@ impl Trainer {
                     let ga = 2.0 * cfg.alpha_weight * ea * inv_b;
                     mse += e2 as f64 / 3.0;
                     loss += (e2 / 3.0 + cfg.alpha_weight * ea * ea) as f64;
+                    let mut gd = 0.0;
+                    if let Some(dt) = view.depth.as_ref().map(|d| d[px as usize]) {
+                        if dt > 0.0 && cfg.depth_weight > 0.0 {
+                            let ed = out.depth - dt;
+                            gd = 2.0 * cfg.depth_weight * ed * inv_b;
+                            loss += (cfg.depth_weight * ed * ed) as f64;
+                        }
+                    }
                     if samples.is_empty() {
                         continue;
                     }
-                    backward(field, &cfg.render, d, bg, &samples, g, ga, 0.0, |s, gr| {
+                    backward(field, &cfg.render, d, bg, &samples, g, ga, gd, |s, gr| {
                         let z = s.base as usize / plane;
                         let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
                         for b in &mut rec[sa..=sb] {
@@ -287,9 +309,9 @@ impl Trainer {
                 (loss, mse, nsamp)
             })
             .collect();
-        let (loss, mse, nsamp) = stats.iter().fold((0.0, 0.0, 0), |a, s| {
-            (a.0 + s.0, a.1 + s.1, a.2 + s.2)
-        });
+        let (loss, mse, nsamp) = stats
+            .iter()
+            .fold((0.0, 0.0, 0), |a, s| (a.0 + s.0, a.1 + s.1, a.2 + s.2));
         self.phase_secs[0] += clock.elapsed().as_secs_f64();
         self.apply_gradients(stride);
         self.step += 1;
@@ -398,7 +420,11 @@ impl Trainer {
                     let v0 = si * slab_vertices;
                     for &v in list {
                         let v = v as usize;
-                        let coords = [v % dims[0], (v / dims[0]) % dims[1], v / (dims[0] * dims[1])];
+                        let coords = [
+                            v % dims[0],
+                            (v / dims[0]) % dims[1],
+                            v / (dims[0] * dims[1]),
+                        ];
                         for a in 0..3 {
                             for dir in [-1isize, 1] {
                                 let c = coords[a] as isize + dir;

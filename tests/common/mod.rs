@@ -15,7 +15,10 @@ pub fn shared_data(name: &str) -> Option<PathBuf> {
     if p.exists() {
         Some(p)
     } else {
-        eprintln!("SKIP: {} is absent (the shared data sits beside the checkout in CI)", p.display());
+        eprintln!(
+            "SKIP: {} is absent (the shared data sits beside the checkout in CI)",
+            p.display()
+        );
         None
     }
 }
