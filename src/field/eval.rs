@@ -20,7 +20,7 @@ pub struct Rendered {
 
 pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) -> Rendered {
     let (w, h) = (view.width, view.height);
-    let rows: Vec<Vec<(f32, f32, [f32; 3], f32)>> = (0..h)
+    let rows: Vec<Vec<(f32, f32, [f32; 3])>> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut scratch = Vec::new();
@@ -33,7 +33,7 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) ->
                     } else {
                         0.0
                     };
-                    (r.alpha, depth, r.rgb, 0.0)
+                    (r.alpha, depth, r.rgb)
                 })
                 .collect()
         })
@@ -45,7 +45,7 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) ->
         alpha: Vec::with_capacity((w * h) as usize),
         depth: Vec::with_capacity((w * h) as usize),
     };
-    for (a, d, c, _) in rows.into_iter().flatten() {
+    for (a, d, c) in rows.into_iter().flatten() {
         out.alpha.push(a);
         out.depth.push(d);
         out.rgb.push(c);

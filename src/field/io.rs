@@ -192,7 +192,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Model> {
             h.channels, h.config.sh_degree
         )));
     }
-    if h.dims.iter().any(|&d| d < 2) || !(h.voxel > 0.0) {
+    if h.dims.iter().any(|&d| d < 2) || h.voxel.is_nan() || h.voxel <= 0.0 {
         return Err(bad(format!(
             "inconsistent header: dims {:?}, voxel {}",
             h.dims, h.voxel

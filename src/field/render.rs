@@ -10,6 +10,9 @@
 //! (normalised by its transmittance): this needs no division by (1 - a_i), so it stays exact when
 //! a sample is opaque.
 
+// Index loops over the 3 colour channels read as the maths does; iterators would obscure it.
+#![allow(clippy::needless_range_loop)]
+
 use super::model::{sh_basis, sigmoid, softplus, Field, BLOCK};
 use glam::Vec3;
 
