@@ -36,14 +36,18 @@ fn cpu_seconds() -> f64 {
 
 fn main() -> objnerf::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let dir = PathBuf::from(args.get(1).map(String::as_str).unwrap_or("../shared/data/lego"));
+    let dir = PathBuf::from(
+        args.get(1)
+            .map(String::as_str)
+            .unwrap_or("../shared/data/lego"),
+    );
     let ds: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(4);
     let secs: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(120.0);
     let degree: u32 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1);
     let steps: usize = args.get(5).and_then(|s| s.parse().ok()).unwrap_or(100_000);
     let t0 = std::time::Instant::now();
-    let train = field::synthetic_tmp::load_scene(&dir.join("transforms_train.json"))?;
-    let test = field::synthetic_tmp::load_scene(&dir.join("transforms_test.json"))?;
+    let train = objnerf::Scene::load(&dir.join("transforms_train.json"))?;
+    let test = objnerf::Scene::load(&dir.join("transforms_test.json"))?;
     let views = field::rays::load_views(&train, &MaskSource::Alpha, ds)?;
     let test_views = field::rays::load_views(&test, &MaskSource::Alpha, ds)?;
     let load_s = t0.elapsed().as_secs_f64();

@@ -5,8 +5,10 @@
 
 pub mod demo;
 pub mod error;
+pub mod eval;
 pub mod field;
 pub mod info;
+pub mod mesh;
 pub mod scene;
 pub mod segment;
 pub mod util;

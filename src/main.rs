@@ -27,6 +27,36 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Give a scene 2D-3D feature tracks with COLMAP: full reconstruction from a folder of images,
+    /// or triangulation with the known poses of a posed scene (e.g. a transforms.json).
+    Sfm {
+        /// A folder of images (full reconstruction) or a posed scene (triangulation).
+        input: PathBuf,
+        /// Output folder: gets sparse/0/ (COLMAP binary) and images/ (a link to the images).
+        #[arg(long)]
+        out: PathBuf,
+        /// Downscale images by this factor before feature extraction (the model is scaled back).
+        #[arg(long, default_value_t = 1)]
+        downscale: u32,
+        /// Reconstruct from the images even when the input has poses.
+        #[arg(long)]
+        reconstruct: bool,
+        /// exhaustive or sequential.
+        #[arg(long, default_value = "exhaustive")]
+        matcher: String,
+        /// COLMAP camera model for full reconstruction.
+        #[arg(long, default_value = "SIMPLE_RADIAL")]
+        camera_model: String,
+        /// Most SIFT features per image.
+        #[arg(long, default_value_t = 8192)]
+        max_features: u32,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Replace the output folder if it exists.
+        #[arg(long)]
+        overwrite: bool,
+    },
     /// Train the object's radiance field (voxel grid) from masked views and save the model.
     Train {
         /// A COLMAP model folder, transforms.json or other scene.
@@ -99,6 +129,46 @@ fn run(cli: Cli) -> Result<()> {
                 );
             } else {
                 print!("{}", info.to_text());
+            }
+            Ok(())
+        }
+        Command::Sfm {
+            input,
+            out,
+            downscale,
+            reconstruct,
+            matcher,
+            camera_model,
+            max_features,
+            json,
+            overwrite,
+        } => {
+            use objnerf::scene::sfm;
+            if downscale == 0 {
+                return Err(objnerf::Error::invalid("--downscale must be at least 1"));
+            }
+            let opts = sfm::SfmOptions {
+                downscale,
+                camera_model,
+                max_features,
+                matcher,
+                overwrite,
+                ..Default::default()
+            };
+            let report = match sfm::resolve_input(&input, reconstruct)? {
+                sfm::SfmInput::Images(dir) => sfm::reconstruct(&dir, &out, &opts)?,
+                sfm::SfmInput::Posed(scene) => sfm::triangulate(&scene, &out, &opts)?,
+            };
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).expect("report serialises")
+                );
+            } else {
+                println!(
+                    "{}: {} of {} images registered, {} points (mean track length {:.2}) in {:.1} s -> {}",
+                    report.mode, report.num_registered, report.num_images, report.num_points, report.mean_track_length, report.seconds, report.model_dir.display()
+                );
             }
             Ok(())
         }

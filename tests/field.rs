@@ -8,8 +8,7 @@ use std::path::Path;
 
 fn lego_views(split: &str, downscale: u32, every: usize) -> Option<Vec<View>> {
     let dir = common::shared_data("lego")?;
-    let mut scene =
-        field::synthetic_tmp::load_scene(&dir.join(format!("transforms_{split}.json"))).unwrap();
+    let mut scene = objnerf::Scene::load(&dir.join(format!("transforms_{split}.json"))).unwrap();
     scene.images = scene.images.into_iter().step_by(every).collect();
     Some(field::rays::load_views(&scene, &MaskSource::Alpha, downscale).unwrap())
 }

@@ -83,7 +83,7 @@ pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Res
     if args.downscale == 0 {
         return Err(Error::invalid("--downscale must be at least 1"));
     }
-    let scene = super::synthetic_tmp::load_scene(&args.scene)?;
+    let scene = crate::Scene::load(&args.scene)?;
     let mut views = load_views(&scene, &args.masks, args.downscale)?;
     let depth_targets = match args.depth {
         DepthMode::None => 0,
@@ -168,7 +168,7 @@ pub fn camera_views(scene: &crate::Scene, downscale: u32) -> Vec<View> {
 pub fn render(model: &Path, scene: &Path, out: &Path, downscale: Option<u32>) -> Result<usize> {
     let m = io::load(model)?;
     let ds = downscale.unwrap_or_else(|| model_downscale(&m));
-    let scene = super::synthetic_tmp::load_scene(scene)?;
+    let scene = crate::Scene::load(scene)?;
     let views = camera_views(&scene, ds);
     let dir = AtomicDir::new(out, true)?;
     let opt = m.train.as_ref().map(|t| t.render).unwrap_or_default();
@@ -213,7 +213,7 @@ pub fn eval(
 ) -> Result<EvalReport> {
     let m = io::load(model)?;
     let ds = downscale.unwrap_or_else(|| model_downscale(&m));
-    let scene = super::synthetic_tmp::load_scene(scene)?;
+    let scene = crate::Scene::load(scene)?;
     let views = load_views(&scene, masks, ds)?;
     let opt = m.train.as_ref().map(|t| t.render).unwrap_or_default();
     Ok(evaluate(&m.field, &opt, &views))

@@ -15,7 +15,6 @@ pub mod model;
 pub mod rays;
 pub mod render;
 pub mod session;
-pub mod synthetic_tmp;
 pub mod train;
 
 pub use model::{Field, FieldConfig};

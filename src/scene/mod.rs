@@ -240,6 +240,7 @@ impl Scene {
     }
 
     /// Axis-aligned bounds of the camera centres and of the sparse points (min, max).
+    #[allow(clippy::type_complexity)] // two optional (min, max) boxes read plainly enough
     pub fn bounds(&self) -> (Option<(DVec3, DVec3)>, Option<(DVec3, DVec3)>) {
         fn bbox(it: impl Iterator<Item = DVec3>) -> Option<(DVec3, DVec3)> {
             it.fold(None, |acc, p| match acc {

@@ -1,6 +1,7 @@
 //! Small shared helpers: atomic file output, a seeded random generator, image reading.
 
 pub mod atomic;
+pub mod paths;
 pub mod rng;
 
 pub use atomic::{write_atomic, AtomicDir};

@@ -86,3 +86,27 @@ pub fn check_files_exist(scene: &Scene) -> Result<()> {
     }
     Ok(())
 }
+
+/// The index of `camera` in `cameras`, adding it (with the next id) unless an identical one is
+/// there: formats that give intrinsics per frame share one camera per distinct set.
+pub(crate) fn intern_camera(
+    cameras: &mut Vec<crate::scene::SceneCamera>,
+    camera: crate::scene::Camera,
+) -> usize {
+    if let Some(i) = cameras.iter().position(|c| c.camera == camera) {
+        return i;
+    }
+    cameras.push(crate::scene::SceneCamera {
+        id: cameras.len() as u32 + 1,
+        camera,
+    });
+    cameras.len() - 1
+}
+
+/// The size of an image file from its header, with an error naming the file.
+pub(crate) fn image_size(path: &Path) -> Result<(u32, u32)> {
+    if !path.is_file() {
+        return Err(Error::format(path, "image file is missing"));
+    }
+    image::image_dimensions(path).map_err(|e| Error::image(path, e))
+}

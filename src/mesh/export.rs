@@ -1,0 +1,80 @@
+//! Plain mesh formats: binary PLY (with normals and colours) and Wavefront OBJ.
+
+use super::Mesh;
+use crate::error::Result;
+use crate::util::write_atomic;
+use std::path::Path;
+
+pub fn write_ply(mesh: &Mesh, path: &Path) -> Result<()> {
+    write_atomic(path, |w| {
+        writeln!(
+            w,
+            "ply\nformat binary_little_endian 1.0\ncomment objnerf mesh {}",
+            mesh.name
+        )?;
+        writeln!(w, "element vertex {}", mesh.positions.len())?;
+        writeln!(w, "property float x\nproperty float y\nproperty float z")?;
+        writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
+        if mesh.colors.is_some() {
+            writeln!(
+                w,
+                "property uchar red\nproperty uchar green\nproperty uchar blue"
+            )?;
+        }
+        writeln!(
+            w,
+            "element face {}\nproperty list uchar uint vertex_indices\nend_header",
+            mesh.triangles.len()
+        )?;
+        for (i, p) in mesh.positions.iter().enumerate() {
+            for v in p.iter().chain(mesh.normals.get(i).unwrap_or(&[0.0; 3])) {
+                w.write_all(&v.to_le_bytes())?;
+            }
+            if let Some(c) = &mesh.colors {
+                w.write_all(&c[i].map(to_srgb8))?;
+            }
+        }
+        for t in &mesh.triangles {
+            w.write_all(&[3])?;
+            for i in t {
+                w.write_all(&i.to_le_bytes())?;
+            }
+        }
+        Ok(())
+    })
+}
+
+pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<()> {
+    write_atomic(path, |w| {
+        writeln!(w, "# objnerf mesh {}\no {}", mesh.name, mesh.name)?;
+        for (i, p) in mesh.positions.iter().enumerate() {
+            match &mesh.colors {
+                Some(c) => writeln!(
+                    w,
+                    "v {} {} {} {} {} {}",
+                    p[0], p[1], p[2], c[i][0], c[i][1], c[i][2]
+                )?,
+                None => writeln!(w, "v {} {} {}", p[0], p[1], p[2])?,
+            }
+        }
+        for n in &mesh.normals {
+            writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;
+        }
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| i + 1);
+            writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+        }
+        Ok(())
+    })
+}
+
+/// Linear 0..1 to 8-bit sRGB.
+pub fn to_srgb8(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}

@@ -1,0 +1,536 @@
+//! Multi-view segmentation from one click (paper §4.2, Algorithm 1): a mask in the first view
+//! selects 3D points D through the features inside it; every further view, visited in order of
+//! covisibility with D, is prompted with its own features whose 3D point is in D, and its mask
+//! adds points to D. Correspondences, not projections, carry the prompts, so a point hidden in a
+//! view (no feature there) never prompts an occluder.
+//!
+//! Guard against leaks: each point collects votes from every segmented view that observes it:
+//! "in" when its feature lies at least `edge_margin_px` inside the mask, "out" when at least that
+//! far outside. D = points with an "in" vote and no "out" vote, recomputed after every view, so
+//! a point that leaked in at a mask's edge leaves D once another view sees it clearly outside.
+
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+use crate::segment::distance::signed_distance;
+use crate::segment::hull::{expected_mask, iou, HullOptions};
+use glam::DVec2;
+use image::GrayImage;
+use serde::Serialize;
+
+/// A point prompt in pixel coordinates (corner origin), positive or negative.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct PointPrompt {
+    pub xy: [f64; 2],
+    pub positive: bool,
+}
+
+/// What the propagation needs from a segmenter: a mask for a view from prompts.
+pub trait ViewSegmenter {
+    fn segment(
+        &mut self,
+        scene: &Scene,
+        view: usize,
+        prompts: &[PointPrompt],
+        bbox: Option<[f64; 4]>,
+    ) -> Result<ViewMask>;
+}
+
+/// A segmenter's answer: the mask at image size (0/255), the model's score and, where the model
+/// gives them, per-pixel logits (used to settle pixels claimed by two objects).
+#[derive(Clone)]
+pub struct ViewMask {
+    pub mask: GrayImage,
+    pub score: f32,
+    pub logits: Option<Vec<f32>>,
+}
+
+#[derive(Clone, Debug)]
+pub struct PropagationOptions {
+    /// Positive prompts per view after thinning (farthest-point sampling).
+    pub max_prompts: usize,
+    /// Negative prompts per view, from points known to lie outside the object.
+    pub max_negatives: usize,
+    /// Features closer than this to a mask's edge do not vote.
+    pub edge_margin_px: f64,
+    /// IoU(SAM mask, expected mask) below this marks a view obstructed.
+    pub obstruction_iou: f64,
+    /// A view needs at least this many positive features to be prompted at all.
+    pub min_prompts: usize,
+    /// Masks smaller than this fraction of the image are flagged tiny.
+    pub tiny_fraction: f64,
+    pub hull: HullOptions,
+}
+
+impl Default for PropagationOptions {
+    fn default() -> Self {
+        PropagationOptions {
+            max_prompts: 8,
+            max_negatives: 3,
+            edge_margin_px: 3.0,
+            obstruction_iou: 0.6,
+            min_prompts: 1,
+            tiny_fraction: 1e-3,
+            hull: HullOptions::default(),
+        }
+    }
+}
+
+/// The user's prompt for one object: clicks (and optionally a box) in one view.
+#[derive(Clone, Debug)]
+pub struct ObjectPrompt {
+    pub name: String,
+    pub view: usize,
+    pub points: Vec<PointPrompt>,
+    pub bbox: Option<[f64; 4]>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ViewStatus {
+    Ok,
+    Obstructed,
+    Absent,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewResult {
+    pub view: String,
+    pub status: ViewStatus,
+    pub score: f32,
+    pub expected_iou: Option<f64>,
+    pub num_prompts: usize,
+    /// Position in the visiting order (0 = the clicked view), None when never prompted.
+    pub order: Option<usize>,
+    /// "cut" (the object runs off the frame), "tiny" (mask under `tiny_fraction` of the image).
+    pub flags: Vec<&'static str>,
+    #[serde(skip)]
+    pub mask: Option<GrayImage>,
+    #[serde(skip)]
+    pub logits: Option<Vec<f32>>,
+    #[serde(skip)]
+    pub prompts: Vec<PointPrompt>,
+}
+
+#[derive(Clone, Debug)]
+pub struct ObjectSegmentation {
+    pub name: String,
+    pub views: Vec<ViewResult>,
+    /// D: indices into `scene.points` of the object's points.
+    pub points: Vec<usize>,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Votes {
+    inside: u32,
+    outside: u32,
+}
+
+/// Run Algorithm 1 for one object.
+pub fn propagate(
+    scene: &Scene,
+    prompt: &ObjectPrompt,
+    seg: &mut dyn ViewSegmenter,
+    opts: &PropagationOptions,
+) -> Result<ObjectSegmentation> {
+    if !scene.has_tracks() {
+        return Err(Error::invalid(format!(
+            "{} has no 2D-3D feature tracks; run `objnerf sfm {} --out DIR` first and segment DIR",
+            scene.source.display(),
+            scene.source.display()
+        )));
+    }
+    let n_views = scene.images.len();
+    let mut votes = vec![Votes::default(); scene.points.len()];
+    let mut views: Vec<ViewResult> = scene
+        .images
+        .iter()
+        .map(|im| ViewResult {
+            view: im.name.clone(),
+            status: ViewStatus::Absent,
+            score: 0.0,
+            expected_iou: None,
+            num_prompts: 0,
+            order: None,
+            flags: vec![],
+            mask: None,
+            logits: None,
+            prompts: vec![],
+        })
+        .collect();
+
+    // The clicked view.
+    let first = seg.segment(scene, prompt.view, &prompt.points, prompt.bbox)?;
+    if first.mask.pixels().all(|p| p[0] <= 127) {
+        return Err(Error::invalid(format!(
+            "the click on view '{}' gave an empty mask for '{}': click inside the object",
+            scene.images[prompt.view].name, prompt.name
+        )));
+    }
+    vote(
+        scene,
+        prompt.view,
+        &first.mask,
+        opts.edge_margin_px,
+        &mut votes,
+    );
+    let d0 = members(&votes);
+    if d0.is_empty() {
+        return Err(Error::invalid(format!(
+            "no tracked feature of view '{}' lies inside the mask of '{}': the object has no 3D points to propagate (is it textured? try another view, or more features in `objnerf sfm`)",
+            scene.images[prompt.view].name, prompt.name
+        )));
+    }
+    record(&mut views[prompt.view], first, prompt.points.clone(), 0);
+    let mut visited = vec![false; n_views];
+    visited[prompt.view] = true;
+
+    for order in 1..n_views {
+        let in_d: Vec<bool> = membership(&votes);
+        // Next: the unvisited view that sees most points of D.
+        let mut best: Option<(usize, usize)> = None;
+        for (v, im) in scene.images.iter().enumerate() {
+            if visited[v] {
+                continue;
+            }
+            let count = im
+                .features
+                .iter()
+                .filter(|f| f.point.is_some_and(|p| in_d[p]))
+                .count();
+            if best.is_none_or(|(_, c)| count > c) {
+                best = Some((v, count));
+            }
+        }
+        let Some((v, count)) = best else { break };
+        visited[v] = true;
+        if count < opts.min_prompts.max(1) {
+            // No view left sees the object: the rest are absent.
+            continue;
+        }
+        let prompts = view_prompts(scene, v, &votes, &in_d, opts);
+        let result = seg.segment(scene, v, &prompts, None)?;
+        vote(scene, v, &result.mask, opts.edge_margin_px, &mut votes);
+        record(&mut views[v], result, prompts, order);
+    }
+
+    let points = members(&votes);
+    classify_views(scene, &points, &mut views, opts);
+    Ok(ObjectSegmentation {
+        name: prompt.name.clone(),
+        views,
+        points,
+    })
+}
+
+fn record(v: &mut ViewResult, m: ViewMask, prompts: Vec<PointPrompt>, order: usize) {
+    v.status = ViewStatus::Ok;
+    v.score = m.score;
+    v.num_prompts = prompts.iter().filter(|p| p.positive).count();
+    v.prompts = prompts;
+    v.order = Some(order);
+    v.mask = Some(m.mask);
+    v.logits = m.logits;
+}
+
+fn membership(votes: &[Votes]) -> Vec<bool> {
+    votes
+        .iter()
+        .map(|v| v.inside > 0 && v.outside == 0)
+        .collect()
+}
+
+fn members(votes: &[Votes]) -> Vec<usize> {
+    membership(votes)
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| **m)
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Every tracked feature of the view votes in or out by its distance to the mask's edge.
+fn vote(scene: &Scene, view: usize, mask: &GrayImage, margin: f64, votes: &mut [Votes]) {
+    let sd = signed_distance(mask);
+    let (w, h) = (mask.width() as i64, mask.height() as i64);
+    for f in &scene.images[view].features {
+        let Some(p) = f.point else { continue };
+        let (x, y) = (f.xy.x.floor() as i64, f.xy.y.floor() as i64);
+        if x < 0 || y < 0 || x >= w || y >= h {
+            continue;
+        }
+        let d = sd[(y * w + x) as usize] as f64;
+        if d >= margin {
+            votes[p].inside += 1;
+        } else if d <= -margin {
+            votes[p].outside += 1;
+        }
+    }
+}
+
+/// Positive prompts: the view's features whose point is in D, thinned by farthest-point sampling;
+/// negatives: features of points known to be outside, nearest to the positives.
+fn view_prompts(
+    scene: &Scene,
+    v: usize,
+    votes: &[Votes],
+    in_d: &[bool],
+    opts: &PropagationOptions,
+) -> Vec<PointPrompt> {
+    let feats = &scene.images[v].features;
+    let pos: Vec<DVec2> = feats
+        .iter()
+        .filter(|f| f.point.is_some_and(|p| in_d[p]))
+        .map(|f| f.xy)
+        .collect();
+    let mut prompts: Vec<PointPrompt> = farthest_point_sample(&pos, opts.max_prompts)
+        .into_iter()
+        .map(|p| PointPrompt {
+            xy: [p.x, p.y],
+            positive: true,
+        })
+        .collect();
+    if opts.max_negatives > 0 && !pos.is_empty() {
+        let centroid = pos.iter().fold(DVec2::ZERO, |a, p| a + *p) / pos.len() as f64;
+        let min_gap = 2.0 * opts.edge_margin_px;
+        let mut neg: Vec<(f64, DVec2)> = feats
+            .iter()
+            .filter(|f| {
+                f.point
+                    .is_some_and(|p| votes[p].outside > 0 && votes[p].inside == 0)
+            })
+            .filter(|f| pos.iter().all(|q| (*q - f.xy).length() >= min_gap))
+            .map(|f| ((f.xy - centroid).length(), f.xy))
+            .collect();
+        neg.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let near: Vec<DVec2> = neg
+            .iter()
+            .take(4 * opts.max_negatives)
+            .map(|x| x.1)
+            .collect();
+        prompts.extend(
+            farthest_point_sample(&near, opts.max_negatives)
+                .into_iter()
+                .map(|p| PointPrompt {
+                    xy: [p.x, p.y],
+                    positive: false,
+                }),
+        );
+    }
+    prompts
+}
+
+/// Up to `k` points spread out: start at the point nearest the centroid, then repeatedly take the
+/// point farthest from those chosen. Deterministic.
+pub fn farthest_point_sample(pts: &[DVec2], k: usize) -> Vec<DVec2> {
+    if pts.len() <= k {
+        return pts.to_vec();
+    }
+    let centroid = pts.iter().fold(DVec2::ZERO, |a, p| a + *p) / pts.len() as f64;
+    let start = (0..pts.len())
+        .min_by(|&a, &b| {
+            (pts[a] - centroid)
+                .length_squared()
+                .total_cmp(&(pts[b] - centroid).length_squared())
+        })
+        .unwrap_or(0);
+    let mut chosen = vec![pts[start]];
+    let mut dist: Vec<f64> = pts
+        .iter()
+        .map(|p| (*p - pts[start]).length_squared())
+        .collect();
+    while chosen.len() < k {
+        let (i, _) =
+            dist.iter().enumerate().fold(
+                (0, -1.0),
+                |acc, (i, d)| if *d > acc.1 { (i, *d) } else { acc },
+            );
+        chosen.push(pts[i]);
+        for (d, p) in dist.iter_mut().zip(pts) {
+            *d = d.min((*p - pts[i]).length_squared());
+        }
+    }
+    chosen
+}
+
+/// Compare every mask with the expected mask of D's projection; mark obstructed, cut and tiny views.
+fn classify_views(
+    scene: &Scene,
+    points: &[usize],
+    views: &mut [ViewResult],
+    opts: &PropagationOptions,
+) {
+    for (v, res) in views.iter_mut().enumerate() {
+        let im = &scene.images[v];
+        let cam = scene.camera_of(im);
+        let proj: Vec<DVec2> = points
+            .iter()
+            .filter_map(|&p| cam.project(im.pose.world_to_camera(scene.points[p].xyz)))
+            .collect();
+        let in_frame = proj.iter().filter(|p| cam.contains(**p)).count();
+        if !proj.is_empty() && (in_frame as f64) < 0.8 * proj.len() as f64 {
+            res.flags.push("cut");
+        }
+        let Some(mask) = &res.mask else { continue };
+        let area = mask.pixels().filter(|p| p[0] > 127).count();
+        if (area as f64) < opts.tiny_fraction * (mask.width() * mask.height()) as f64 {
+            res.flags.push("tiny");
+        }
+        let (expected, _) = expected_mask(&proj, cam.width, cam.height, &opts.hull);
+        let score = iou(mask, &expected);
+        res.expected_iou = Some(score);
+        if area == 0 {
+            res.status = ViewStatus::Absent;
+        } else if score < opts.obstruction_iou {
+            res.status = ViewStatus::Obstructed;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn farthest_point_sampling_spreads_out() {
+        let pts: Vec<DVec2> = (0..100)
+            .map(|i| DVec2::new((i % 10) as f64, (i / 10) as f64))
+            .collect();
+        let s = farthest_point_sample(&pts, 5);
+        assert_eq!(s.len(), 5);
+        // The four corners are among the picks after the central start.
+        for c in [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(9.0, 0.0),
+            DVec2::new(0.0, 9.0),
+            DVec2::new(9.0, 9.0),
+        ] {
+            assert!(s.contains(&c), "{c} not in {s:?}");
+        }
+        assert_eq!(farthest_point_sample(&pts[..3], 5).len(), 3);
+    }
+}
+
+/// Several objects in one pass: Algorithm 1 for each (the segmenter's embedding cache makes every
+/// view's encoder run once for all objects), then overlaps settled: a pixel claimed by two
+/// objects goes to the one nearer the camera in that view (median depth of its points), since
+/// the nearer object is the one that can be seen there.
+pub fn propagate_objects(
+    scene: &Scene,
+    prompts: &[ObjectPrompt],
+    seg: &mut dyn ViewSegmenter,
+    opts: &PropagationOptions,
+) -> Result<Vec<ObjectSegmentation>> {
+    let mut objects = prompts
+        .iter()
+        .map(|p| propagate(scene, p, seg, opts))
+        .collect::<Result<Vec<_>>>()?;
+    resolve_overlaps(scene, &mut objects);
+    Ok(objects)
+}
+
+fn resolve_overlaps(scene: &Scene, objects: &mut [ObjectSegmentation]) {
+    if objects.len() < 2 {
+        return;
+    }
+    for v in 0..scene.images.len() {
+        let im = &scene.images[v];
+        // Depth of each object in this view; objects without points sort last.
+        let mut order: Vec<(f64, usize)> = objects
+            .iter()
+            .enumerate()
+            .map(|(k, o)| {
+                let depths: Vec<f64> = o
+                    .points
+                    .iter()
+                    .map(|&p| im.pose.world_to_camera(scene.points[p].xyz).z)
+                    .filter(|z| *z > 0.0)
+                    .collect();
+                (
+                    crate::segment::hull::median(depths).unwrap_or(f64::INFINITY),
+                    k,
+                )
+            })
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let Some(first) = objects.iter().find_map(|o| o.views[v].mask.as_ref()) else {
+            continue;
+        };
+        let mut taken = vec![false; (first.width() * first.height()) as usize];
+        for &(_, k) in &order {
+            if let Some(mask) = objects[k].views[v].mask.as_mut() {
+                for (i, px) in mask.pixels_mut().enumerate() {
+                    if px[0] > 127 {
+                        if taken[i] {
+                            px[0] = 0;
+                        } else {
+                            taken[i] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The baseline the paper argues against: prompts made by projecting the first view's points
+/// into every other view, with no visibility test (an occluder in front of a projected point
+/// gets prompted). Every prompted view is reported "ok": the baseline has no obstruction check.
+pub fn projection_baseline(
+    scene: &Scene,
+    prompt: &ObjectPrompt,
+    seg: &mut dyn ViewSegmenter,
+    opts: &PropagationOptions,
+) -> Result<ObjectSegmentation> {
+    let first = seg.segment(scene, prompt.view, &prompt.points, prompt.bbox)?;
+    let mut votes = vec![Votes::default(); scene.points.len()];
+    vote(
+        scene,
+        prompt.view,
+        &first.mask,
+        opts.edge_margin_px,
+        &mut votes,
+    );
+    let points = members(&votes);
+    let mut views = Vec::with_capacity(scene.images.len());
+    for (v, im) in scene.images.iter().enumerate() {
+        let mut res = ViewResult {
+            view: im.name.clone(),
+            status: ViewStatus::Absent,
+            score: 0.0,
+            expected_iou: None,
+            num_prompts: 0,
+            order: None,
+            flags: vec![],
+            mask: None,
+            logits: None,
+            prompts: vec![],
+        };
+        if v == prompt.view {
+            record(&mut res, first.clone(), prompt.points.clone(), 0);
+        } else {
+            let cam = scene.camera_of(im);
+            let proj: Vec<DVec2> = points
+                .iter()
+                .filter_map(|&p| cam.project(im.pose.world_to_camera(scene.points[p].xyz)))
+                .filter(|p| cam.contains(*p))
+                .collect();
+            if !proj.is_empty() {
+                let prompts: Vec<PointPrompt> = farthest_point_sample(&proj, opts.max_prompts)
+                    .into_iter()
+                    .map(|p| PointPrompt {
+                        xy: [p.x, p.y],
+                        positive: true,
+                    })
+                    .collect();
+                let m = seg.segment(scene, v, &prompts, None)?;
+                record(&mut res, m, prompts, v);
+            }
+        }
+        views.push(res);
+    }
+    Ok(ObjectSegmentation {
+        name: prompt.name.clone(),
+        views,
+        points,
+    })
+}
