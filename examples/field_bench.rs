@@ -108,7 +108,12 @@ fn main() -> objnerf::Result<()> {
         }
     });
     let train_cpu = cpu_seconds() - cpu0;
-    let ev = field::eval::evaluate(&trainer.field, &trainer.cfg.render, &test_views);
+    // Evaluate with the default (finer) sampling whatever the training step was.
+    let ev = field::eval::evaluate(
+        &trainer.field,
+        &field::RenderOptions::default(),
+        &test_views,
+    );
     let commit = std::process::Command::new("git")
         .args(["rev-parse", "--short", "HEAD"])
         .output()

@@ -80,7 +80,7 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         seed: u64,
         /// Most optimisation steps (the learning-rate schedule spans them).
-        #[arg(long, default_value_t = 3000)]
+        #[arg(long, default_value_t = 20_000)]
         steps: usize,
         /// Spherical-harmonic degree of the colour (0-2).
         #[arg(long, default_value_t = 1)]

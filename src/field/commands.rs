@@ -112,8 +112,8 @@ pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Res
     };
     let stop = StopRule {
         time_budget: args.time_budget,
-        plateau_db: Some(0.02),
-        window: 200,
+        plateau_db: Some(0.01),
+        window: 500,
     };
     let summary = run(&mut trainer, &views, &rays, &stop, &mut progress);
     let notes = serde_json::json!({
@@ -171,7 +171,8 @@ pub fn render(model: &Path, scene: &Path, out: &Path, downscale: Option<u32>) ->
     let scene = crate::Scene::load(scene)?;
     let views = camera_views(&scene, ds);
     let dir = AtomicDir::new(out, true)?;
-    let opt = m.train.as_ref().map(|t| t.render).unwrap_or_default();
+    // The default sampling (half-voxel steps), however coarsely training sampled.
+    let opt = super::RenderOptions::default();
     for v in &views {
         let r = render_view(&m.field, &opt, v, [1.0; 3]);
         let stem = Path::new(&v.name)
@@ -215,6 +216,7 @@ pub fn eval(
     let ds = downscale.unwrap_or_else(|| model_downscale(&m));
     let scene = crate::Scene::load(scene)?;
     let views = load_views(&scene, masks, ds)?;
-    let opt = m.train.as_ref().map(|t| t.render).unwrap_or_default();
+    // The default sampling (half-voxel steps), however coarsely training sampled.
+    let opt = super::RenderOptions::default();
     Ok(evaluate(&m.field, &opt, &views))
 }
