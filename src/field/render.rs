@@ -110,6 +110,9 @@ pub fn forward(
     let mut trans = 1.0f32;
     let mut feat = [0f32; 28];
     let t0 = tn + jitter * step_w;
+    // Sample k sits at t0 + k * step (not an accumulated sum), so skipping ahead lands on exactly
+    // the samples a dense march would take.
+    let mut ks = 0u32;
     let mut t = t0;
     let bd = f.block_dims;
     let inv_dg = dg.recip();
@@ -130,9 +133,9 @@ pub fn forward(
                     t_exit = t_exit.min(te);
                 }
             }
-            let k = ((t_exit - t0) / step_w).ceil();
-            let next = t0 + k * step_w;
-            t = if next > t { next } else { t + step_w };
+            let kn = ((t_exit - t0) / step_w).ceil() as u32;
+            ks = kn.max(ks + 1);
+            t = t0 + ks as f32 * step_w;
             continue;
         }
         let cell = f.cell_index(b);
@@ -169,7 +172,8 @@ pub fn forward(
                 }
             }
         }
-        t += step_w;
+        ks += 1;
+        t = t0 + ks as f32 * step_w;
     }
     out.alpha = 1.0 - trans;
     for c in 0..3 {
@@ -297,6 +301,52 @@ mod tests {
             Vec3::ONE
         )
         .is_some());
+    }
+
+    /// Skipping free cells and empty blocks must not change a ray's result when the skipped
+    /// space holds no density above the threshold.
+    #[test]
+    fn empty_space_skipping_matches_dense_marching() {
+        let mut f = Field::new(
+            FieldConfig {
+                sh_degree: 1,
+                alpha_init: 0.01,
+                base_voxel: 0.05,
+            },
+            Vec3::splat(-1.0),
+            Vec3::splat(1.0),
+            [41, 41, 41],
+        );
+        let mut r = Rng::new(5);
+        let ch = f.grid.channels;
+        for v in 0..f.grid.num_vertices() {
+            let (x, y, z) = (v % 41, (v / 41) % 41, v / (41 * 41));
+            let p = Vec3::new(x as f32, y as f32, z as f32) / 20.0 - 1.0;
+            let inside = (p - Vec3::new(0.2, -0.1, 0.0)).length() < 0.4;
+            f.grid.data[v * ch] = if inside { 2.0 + r.f32() } else { -40.0 };
+            for j in 1..ch {
+                f.grid.data[v * ch + j] = r.normal() as f32;
+            }
+        }
+        let dense = f.clone();
+        f.prune_occupancy(0.5, 1e-4);
+        assert!(f.occupied_cells() < f.num_cells() / 5);
+        assert!(f.blocks.iter().any(|b| !b));
+        let opt = RenderOptions::default();
+        let mut s1 = Vec::new();
+        let mut s2 = Vec::new();
+        for i in 0..200 {
+            let o = Vec3::new(
+                -3.0,
+                (i % 20) as f32 * 0.1 - 1.0,
+                (i / 20) as f32 * 0.2 - 1.0,
+            );
+            let d = (Vec3::new(1.0, 0.05 * (i % 7) as f32, -0.03 * (i % 5) as f32)).normalize();
+            let a = forward(&dense, &opt, o, d, 0.3, [1.0; 3], &mut s1);
+            let b = forward(&f, &opt, o, d, 0.3, [1.0; 3], &mut s2);
+            assert_eq!(a, b, "ray {i}");
+            assert_eq!(s1.len(), s2.len());
+        }
     }
 
     /// The hand-written backward against central finite differences of the forward, over every
