@@ -210,14 +210,16 @@ fn run(cli: Cli) -> Result<()> {
                 .progress_chars("=> "),
             );
             let batch = objnerf::field::TrainConfig::default().batch as f64;
+            let mut first = None;
             let report = fc::train(&args, |s, secs| {
+                let f = *first.get_or_insert(s.step - 1);
                 bar.set_position(s.step as u64);
                 if s.step % 10 == 0 {
                     bar.set_message(format!(
                         "loss {:.5}  psnr {:.2} dB  {:.0} rays/s",
                         s.loss,
                         s.psnr,
-                        s.step as f64 * batch / secs.max(1e-9)
+                        (s.step - f) as f64 * batch / secs.max(1e-9)
                     ));
                 }
             })?;

@@ -108,3 +108,89 @@ pub fn add_dense_depth(views: &mut [View], scene: &Scene, downscale: u32) -> Res
         .collect::<Result<_>>()?;
     Ok(counts.iter().sum())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{
+        Camera, Feature, ImageView, Point3D, Pose, SceneCamera, SourceFormat, TrackElement,
+    };
+    use glam::{DVec2, DVec3};
+
+    /// A point seen through its track becomes a target at its feature's pixel, as the distance
+    /// along that pixel's ray; a feature outside the mask gives none.
+    #[test]
+    fn sparse_depth_from_tracks() {
+        let cam = Camera::pinhole(40, 40, 40.0, 40.0, 20.0, 20.0);
+        let pose = Pose::look_at(DVec3::new(0.0, 0.0, -3.0), DVec3::ZERO, DVec3::Y);
+        let pts = [DVec3::new(0.3, -0.2, 0.5), DVec3::new(-0.5, 0.4, 0.0)];
+        let features: Vec<Feature> = pts
+            .iter()
+            .enumerate()
+            .map(|(i, p)| Feature {
+                xy: cam.project(pose.world_to_camera(*p)).unwrap(),
+                point: Some(i),
+            })
+            .collect();
+        let scene = Scene {
+            source: "mem".into(),
+            format: SourceFormat::Demo,
+            cameras: vec![SceneCamera {
+                id: 1,
+                camera: cam.clone(),
+            }],
+            images: vec![ImageView {
+                id: 1,
+                name: "a".into(),
+                path: "a.png".into(),
+                camera: 0,
+                pose,
+                mask_path: None,
+                depth_path: None,
+                features: features.clone(),
+            }],
+            points: pts
+                .iter()
+                .enumerate()
+                .map(|(i, p)| Point3D {
+                    id: i as u64 + 1,
+                    xyz: *p,
+                    rgb: [0; 3],
+                    error: 0.0,
+                    track: vec![TrackElement {
+                        image: 0,
+                        feature: i,
+                    }],
+                })
+                .collect(),
+            depth_scale: 1000.0,
+            applied_transform: None,
+        };
+        // Mask: the left half of the image is the object.
+        let rgba = (0..1600)
+            .map(|i| if i % 40 < 20 { [9, 9, 9, 255] } else { [0; 4] })
+            .collect();
+        let mut views = vec![View::new("a".into(), cam, pose, rgba)];
+        let n = add_sparse_depth(&mut views, &scene, 1).unwrap();
+        let inside: Vec<usize> = features
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.xy.x < 20.0)
+            .map(|(i, _)| i)
+            .collect();
+        assert_eq!(n, inside.len());
+        assert!(n >= 1);
+        let d = views[0].depth.as_ref().unwrap();
+        for i in inside {
+            let xy: DVec2 = features[i].xy;
+            let idx = xy.y.floor() as u32 * 40 + xy.x.floor() as u32;
+            let (o, dir) = views[0].ray(idx);
+            // The target is the distance along the pixel-centre ray to the point's z-plane.
+            let z = pose.world_to_camera(pts[i]).z as f32;
+            let along = d[idx as usize];
+            let hit = o + dir * along;
+            let hz = pose.world_to_camera(hit.as_dvec3()).z as f32;
+            assert!((hz - z).abs() < 1e-4, "{hz} vs {z}");
+        }
+    }
+}

@@ -142,6 +142,7 @@ pub fn run(
     mut progress: impl FnMut(&StepStats, f64),
 ) -> RunSummary {
     let start = Instant::now();
+    let first_step = trainer.step;
     let mut stopped_by = "steps".to_string();
     let mut window_sum = 0.0f64;
     let mut last_window: Option<f64> = None;
@@ -176,7 +177,8 @@ pub fn run(
     RunSummary {
         steps: trainer.step,
         seconds,
-        rays_per_second: (trainer.step * trainer.cfg.batch) as f64 / seconds.max(1e-9),
+        rays_per_second: ((trainer.step - first_step) * trainer.cfg.batch) as f64
+            / seconds.max(1e-9),
         final_psnr: last.psnr,
         stopped_by,
     }
