@@ -280,3 +280,49 @@ fn dense_depth_supervision_reduces_depth_error() {
     eprintln!("sphere, 4 views: median depth error {without:.4} without depth, {with:.4} with dense depth (radius 0.5)");
     assert!(with < 0.8 * without, "with {with} vs without {without}");
 }
+
+/// train -> eval --json -> render through the binary, on lego at 50x50 for a few seconds.
+#[test]
+fn cli_train_eval_render() {
+    let Some(lego) = common::shared_data("lego") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("lego.objf");
+    let bin = common::objnerf_bin();
+    let train = lego.join("transforms_train.json");
+    let test = lego.join("transforms_test.json");
+    let out = std::process::Command::new(&bin)
+        .args(["train", train.to_str().unwrap(), "--masks", "alpha", "--out"])
+        .arg(&model)
+        .args(["--downscale", "16", "--time-budget", "6", "--seed", "3"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("pruned") && err.contains("vertices"), "{err}");
+    let out = std::process::Command::new(&bin)
+        .arg("eval")
+        .arg(&model)
+        .args(["--scene", test.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["num_views"], 25);
+    let psnr = v["psnr"].as_f64().unwrap();
+    assert!(psnr > 15.0 && v["ssim"].as_f64().unwrap() > 0.3, "{v}");
+    let renders = dir.path().join("renders");
+    let out = std::process::Command::new(&bin)
+        .arg("render")
+        .arg(&model)
+        .args(["--scene", test.to_str().unwrap(), "--out"])
+        .arg(&renders)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for f in ["r_0.png", "r_0_alpha.png", "r_0_depth.png"] {
+        let img = image::open(renders.join(f)).unwrap();
+        assert_eq!((img.width(), img.height()), (50, 50));
+    }
+}
