@@ -55,6 +55,25 @@ fn training_is_repeatable_for_a_seed() {
     );
 }
 
+/// The scatter splits the grid by thread count, but each vertex sums its records in the same
+/// order: one thread and three threads give the same grid.
+#[test]
+fn training_does_not_depend_on_the_thread_count() {
+    let Some(views) = lego_views("train", 16, 10) else {
+        return;
+    };
+    let with = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
+            .install(|| train_steps(&views, small_cfg(16), 16))
+    };
+    let a = with(1);
+    let b = with(3);
+    assert!(a.field.grid.data == b.field.grid.data, "grids differ");
+}
+
 #[test]
 fn resuming_from_a_saved_model_continues_exactly() {
     let Some(views) = lego_views("train", 16, 10) else {
@@ -293,7 +312,13 @@ fn cli_train_eval_render() {
     let train = lego.join("transforms_train.json");
     let test = lego.join("transforms_test.json");
     let out = std::process::Command::new(&bin)
-        .args(["train", train.to_str().unwrap(), "--masks", "alpha", "--out"])
+        .args([
+            "train",
+            train.to_str().unwrap(),
+            "--masks",
+            "alpha",
+            "--out",
+        ])
         .arg(&model)
         .args(["--downscale", "16", "--time-budget", "6", "--seed", "3"])
         .output()
@@ -307,7 +332,11 @@ fn cli_train_eval_render() {
         .args(["--scene", test.to_str().unwrap(), "--json"])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["num_views"], 25);
     let psnr = v["psnr"].as_f64().unwrap();
@@ -320,9 +349,44 @@ fn cli_train_eval_render() {
         .arg(&renders)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     for f in ["r_0.png", "r_0_alpha.png", "r_0_depth.png"] {
         let img = image::open(renders.join(f)).unwrap();
         assert_eq!((img.width(), img.height()), (50, 50));
     }
+}
+
+/// Issue 5's target: lego at 200x200, 100 train views, 5 minutes of training, >= 28 dB on the 25
+/// test views. Slow: `cargo test --release --test field -- --ignored` (or examples/field_bench).
+#[test]
+#[ignore]
+fn lego_200_reaches_28_db_within_5_minutes() {
+    let (Some(views), Some(test)) = (lego_views("train", 4, 1), lego_views("test", 4, 1)) else {
+        return;
+    };
+    let (mut t, rays, setup) =
+        field::prepare(&views, &SetupConfig::default(), TrainConfig::default()).unwrap();
+    let stop = field::StopRule {
+        time_budget: Some(300.0),
+        plateau_db: None,
+        window: 500,
+    };
+    let run = field::run(&mut t, &views, &rays, &stop, |_, _| {});
+    let ev = field::eval::evaluate(&t.field, &field::RenderOptions::default(), &test);
+    eprintln!(
+        "lego 200^2: {} steps in {:.0} s ({:.0} rays/s), grid {:?}, {:.1}% rays pruned: test PSNR {:.2} dB, SSIM {:.4}",
+        run.steps,
+        run.seconds,
+        run.rays_per_second,
+        setup.final_dims,
+        100.0 * setup.pruned_fraction,
+        ev.psnr,
+        ev.ssim
+    );
+    assert_eq!(ev.num_views, 25);
+    assert!(ev.psnr >= 28.0, "PSNR {}", ev.psnr);
 }
