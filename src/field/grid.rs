@@ -72,10 +72,17 @@ impl Grid {
     /// The 8 corners and weights of a cell base and fractional position.
     #[inline]
     pub fn corners_of(&self, base: [usize; 3], f: [f32; 3]) -> Corners {
+        Grid::corners_in(self.dims, base, f)
+    }
+
+    /// [`Grid::corners_of`] for a grid of `dims`, without borrowing it (the optimiser needs the
+    /// corners while it writes the grid).
+    #[inline]
+    pub fn corners_in(dims: [usize; 3], base: [usize; 3], f: [f32; 3]) -> Corners {
         let sx = 1;
-        let sy = self.dims[0];
-        let sz = self.dims[0] * self.dims[1];
-        let b = self.vertex_index(base[0], base[1], base[2]) as u32;
+        let sy = dims[0];
+        let sz = dims[0] * dims[1];
+        let b = (base[0] + dims[0] * (base[1] + dims[1] * base[2])) as u32;
         let (sx, sy, sz) = (sx as u32, sy as u32, sz as u32);
         let (fx, fy, fz) = (f[0], f[1], f[2]);
         let (gx, gy, gz) = (1.0 - fx, 1.0 - fy, 1.0 - fz);

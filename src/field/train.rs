@@ -7,6 +7,7 @@
 //! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
 //! the same order whatever the thread count, and two runs with one seed give identical grids.
 
+use super::grid::Grid;
 use super::model::Field;
 use super::rays::{RaySet, View};
 use super::render::{backward, forward, RenderOptions, Sample};
@@ -85,6 +86,46 @@ pub struct StepStats {
 }
 
 const CHUNK: usize = 256;
+
+/// One Adam step's constants (bias corrections and the decayed learning rates).
+#[derive(Clone, Copy)]
+struct AdamStep {
+    b1: f32,
+    b2: f32,
+    c1: f32,
+    c2: f32,
+    lr: [f32; 2],
+}
+
+impl AdamStep {
+    /// Update the listed vertices of one slab (slices start at vertex `v0`) and clear their
+    /// gradients.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn apply(
+        &self,
+        p: &mut [f32],
+        g: &mut [f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        list: &[u32],
+        v0: usize,
+        ch: usize,
+    ) {
+        let (b1, b2, c1, c2) = (self.b1, self.b2, self.c1, self.c2);
+        for &vtx in list {
+            let o = (vtx as usize - v0) * ch;
+            for j in o..o + ch {
+                let gj = g[j];
+                g[j] = 0.0;
+                m[j] = b1 * m[j] + (1.0 - b1) * gj;
+                v[j] = b2 * v[j] + (1.0 - b2) * gj * gj;
+                let l = if j == o { self.lr[0] } else { self.lr[1] };
+                p[j] -= l * (m[j] / c1) / (v[j].sqrt() / c2 + 1e-8);
+            }
+        }
+    }
+}
 
 /// Optimiser state and the buffers of one training run.
 pub struct Trainer {
@@ -353,16 +394,24 @@ impl Trainer {
         let (_, zper) = self.slabs();
         let stamp_id = self.step as u32 + 1;
         let clock = std::time::Instant::now();
+        // Without TV, each slab runs Adam on its vertices right after summing their gradients,
+        // while those lines are still in cache (TV reads neighbours across slabs, so it needs
+        // every slab's scatter finished first).
+        let fused = self.cfg.tv_density == 0.0 && self.cfg.tv_color == 0.0;
+        let adam = fused.then(|| self.adam_step());
         let records = &self.records;
-        let field = &self.field;
         let (sx, sy, sz) = (1usize, dims[0], plane);
         let offs = [0, sx, sy, sx + sy, sz, sx + sz, sy + sz, sx + sy + sz];
+        let span = zper * plane * ch;
         let touched: Vec<Vec<u32>> = self
             .grad
-            .par_chunks_mut(zper * plane * ch)
+            .par_chunks_mut(span)
             .zip(self.stamp.par_chunks_mut(zper * plane))
+            .zip(self.field.grid.data.par_chunks_mut(span))
+            .zip(self.m.par_chunks_mut(span))
+            .zip(self.v.par_chunks_mut(span))
             .enumerate()
-            .map(|(si, (gslab, stslab))| {
+            .map(|(si, ((((gslab, stslab), pslab), mslab), vslab))| {
                 let z0 = si * zper;
                 let v0 = z0 * plane;
                 let v1 = v0 + stslab.len();
@@ -374,7 +423,8 @@ impl Trainer {
                         if bz + 1 < z0 || bz >= z0 + stslab.len() / plane {
                             continue;
                         }
-                        let k = field.grid.corners_of(
+                        let k = Grid::corners_in(
+                            dims,
                             [base % dims[0], (base / dims[0]) % dims[1], bz],
                             [r[1], r[2], r[3]],
                         );
@@ -400,13 +450,18 @@ impl Trainer {
                 // Ascending order turns the optimiser's pass into a forward sweep of memory
                 // (first-touch order is random and was cache-miss bound).
                 list.sort_unstable();
+                if let Some(a) = &adam {
+                    a.apply(pslab, gslab, mslab, vslab, &list, v0, ch);
+                }
                 list
             })
             .collect();
         self.phase_secs[1] += clock.elapsed().as_secs_f64();
-        let clock = std::time::Instant::now();
-        self.tv_and_adam(&touched, zper * plane);
-        self.phase_secs[2] += clock.elapsed().as_secs_f64();
+        if !fused {
+            let clock = std::time::Instant::now();
+            self.tv_and_adam(&touched, zper * plane);
+            self.phase_secs[2] += clock.elapsed().as_secs_f64();
+        }
     }
 
     fn tv_and_adam(&mut self, touched: &[Vec<u32>], slab_vertices: usize) {
@@ -449,13 +504,7 @@ impl Trainer {
                     }
                 });
         }
-        self.adam_t += 1;
-        let t = self.adam_t as i32;
-        let decay = cfg.lr_final.powf(self.progress());
-        let (b1, b2) = (cfg.beta1, cfg.beta2);
-        let c1 = 1.0 - b1.powi(t);
-        let c2 = (1.0 - b2.powi(t)).sqrt();
-        let lr = [cfg.lr_density * decay, cfg.lr_color * decay];
+        let step = self.adam_step();
         let span = slab_vertices * ch;
         self.field
             .grid
@@ -467,18 +516,22 @@ impl Trainer {
             .zip(touched.par_iter())
             .enumerate()
             .for_each(|(si, ((((p, g), m), v), list))| {
-                let v0 = si * slab_vertices;
-                for &vtx in list {
-                    let o = (vtx as usize - v0) * ch;
-                    for j in o..o + ch {
-                        let gj = g[j];
-                        g[j] = 0.0;
-                        m[j] = b1 * m[j] + (1.0 - b1) * gj;
-                        v[j] = b2 * v[j] + (1.0 - b2) * gj * gj;
-                        let l = if j == o { lr[0] } else { lr[1] };
-                        p[j] -= l * (m[j] / c1) / ((v[j]).sqrt() / c2 + 1e-8);
-                    }
-                }
+                step.apply(p, g, m, v, list, si * slab_vertices, ch);
             });
+    }
+
+    /// Advance the Adam step count and return this step's constants.
+    fn adam_step(&mut self) -> AdamStep {
+        self.adam_t += 1;
+        let t = self.adam_t as i32;
+        let cfg = &self.cfg;
+        let decay = cfg.lr_final.powf(self.progress());
+        AdamStep {
+            b1: cfg.beta1,
+            b2: cfg.beta2,
+            c1: 1.0 - cfg.beta1.powi(t),
+            c2: (1.0 - cfg.beta2.powi(t)).sqrt(),
+            lr: [cfg.lr_density * decay, cfg.lr_color * decay],
+        }
     }
 }
