@@ -30,15 +30,30 @@ impl std::str::FromStr for DepthMode {
     }
 }
 
-/// Parse `--masks`: `alpha`, `truth:OBJECT`, `scene` or a folder.
-pub fn parse_masks(s: &str) -> Result<MaskSource> {
+/// Parse `--masks`: `alpha`, `scene` (each view's mask_path), `truth:OBJECT` (the demo scene's
+/// `truth/masks/OBJECT/` beside the scene) or a folder of masks.
+pub fn parse_masks(s: &str, scene: &Path) -> Result<MaskSource> {
     if s == "alpha" {
         Ok(MaskSource::Alpha)
     } else if s == "scene" {
         Ok(MaskSource::Scene)
     } else if let Some(obj) = s.strip_prefix("truth:") {
+        // The scene may be named by its folder or by a file inside it (transforms.json,
+        // sparse/0): look upwards for truth/masks/OBJECT.
+        let start = if scene.is_dir() {
+            scene.to_path_buf()
+        } else {
+            scene.parent().unwrap_or(Path::new(".")).to_path_buf()
+        };
+        for dir in start.ancestors() {
+            let d = dir.join("truth/masks").join(obj);
+            if d.is_dir() {
+                return Ok(MaskSource::Dir(d));
+            }
+        }
         Err(Error::invalid(format!(
-            "--masks truth:{obj}: true masks come with the demo scene, which this build cannot read yet; pass a mask folder or 'alpha'"
+            "--masks truth:{obj}: no truth/masks/{obj}/ folder at or above {} (true masks come with the demo scene: objnerf demo-scene)",
+            start.display()
         )))
     } else {
         let p = PathBuf::from(s);

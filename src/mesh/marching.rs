@@ -65,44 +65,61 @@ pub fn marching_cubes(values: &[f32], dims: [usize; 3], iso: f32) -> GridMesh {
     stitch(parts)
 }
 
-/// Cells with z in [z0, z1): a rolling pair of planes of x/y-edge vertex ids, and z-edge ids.
-fn march_chunk(v: &[f32], [nx, ny, _]: [usize; 3], iso: f32, z0: usize, z1: usize) -> GridMesh {
-    let mut mesh = GridMesh::default();
-    let at = |x: usize, y: usize, z: usize| v[x + nx * (y + ny * z)];
-    let mut lerp_vertex = |mesh: &mut GridMesh, a: [usize; 3], b: [usize; 3]| -> u32 {
-        let (va, vb) = (at(a[0], a[1], a[2]), at(b[0], b[1], b[2]));
-        let t = ((iso - va) / (vb - va)).clamp(0.0, 1.0);
+/// The grid a chunk reads, and how a crossing edge becomes a vertex.
+struct Grid<'a> {
+    v: &'a [f32],
+    nx: usize,
+    ny: usize,
+    iso: f32,
+}
+
+impl Grid<'_> {
+    fn at(&self, x: usize, y: usize, z: usize) -> f32 {
+        self.v[x + self.nx * (y + self.ny * z)]
+    }
+
+    /// The vertex where the surface crosses the edge a-b, linearly interpolated.
+    fn vertex(&self, mesh: &mut GridMesh, a: [usize; 3], b: [usize; 3]) -> u32 {
+        let (va, vb) = (self.at(a[0], a[1], a[2]), self.at(b[0], b[1], b[2]));
+        let t = ((self.iso - va) / (vb - va)).clamp(0.0, 1.0);
         let p = [0, 1, 2].map(|k| a[k] as f32 + t * (b[k] as f32 - a[k] as f32));
         mesh.positions.push(p);
         (mesh.positions.len() - 1) as u32
-    };
-    let plane_edges =
-        |mesh: &mut GridMesh,
-         z: usize,
-         lerp: &mut dyn FnMut(&mut GridMesh, [usize; 3], [usize; 3]) -> u32| {
-            let mut xe = vec![NONE; nx * ny];
-            let mut ye = vec![NONE; nx * ny];
-            for y in 0..ny {
-                for x in 0..nx {
-                    let inside = at(x, y, z) > iso;
-                    if x + 1 < nx && (at(x + 1, y, z) > iso) != inside {
-                        xe[x + nx * y] = lerp(mesh, [x, y, z], [x + 1, y, z]);
-                    }
-                    if y + 1 < ny && (at(x, y + 1, z) > iso) != inside {
-                        ye[x + nx * y] = lerp(mesh, [x, y, z], [x, y + 1, z]);
-                    }
+    }
+
+    /// Vertex ids of the crossed x- and y-edges of plane z (NONE where not crossed).
+    fn plane_edges(&self, mesh: &mut GridMesh, z: usize) -> (Vec<u32>, Vec<u32>) {
+        let (nx, ny, iso) = (self.nx, self.ny, self.iso);
+        let mut xe = vec![NONE; nx * ny];
+        let mut ye = vec![NONE; nx * ny];
+        for y in 0..ny {
+            for x in 0..nx {
+                let inside = self.at(x, y, z) > iso;
+                if x + 1 < nx && (self.at(x + 1, y, z) > iso) != inside {
+                    xe[x + nx * y] = self.vertex(mesh, [x, y, z], [x + 1, y, z]);
+                }
+                if y + 1 < ny && (self.at(x, y + 1, z) > iso) != inside {
+                    ye[x + nx * y] = self.vertex(mesh, [x, y, z], [x, y + 1, z]);
                 }
             }
-            (xe, ye)
-        };
-    let (mut xe0, mut ye0) = plane_edges(&mut mesh, z0, &mut lerp_vertex);
+        }
+        (xe, ye)
+    }
+}
+
+/// Cells with z in [z0, z1): a rolling pair of planes of x/y-edge vertex ids, and z-edge ids.
+fn march_chunk(v: &[f32], [nx, ny, _]: [usize; 3], iso: f32, z0: usize, z1: usize) -> GridMesh {
+    let g = Grid { v, nx, ny, iso };
+    let at = |x: usize, y: usize, z: usize| g.at(x, y, z);
+    let mut mesh = GridMesh::default();
+    let (mut xe0, mut ye0) = g.plane_edges(&mut mesh, z0);
     for z in z0..z1 {
-        let (xe1, ye1) = plane_edges(&mut mesh, z + 1, &mut lerp_vertex);
+        let (xe1, ye1) = g.plane_edges(&mut mesh, z + 1);
         let mut ze = vec![NONE; nx * ny];
         for y in 0..ny {
             for x in 0..nx {
                 if (at(x, y, z) > iso) != (at(x, y, z + 1) > iso) {
-                    ze[x + nx * y] = lerp_vertex(&mut mesh, [x, y, z], [x, y, z + 1]);
+                    ze[x + nx * y] = g.vertex(&mut mesh, [x, y, z], [x, y, z + 1]);
                 }
             }
         }
@@ -242,10 +259,10 @@ mod tests {
 
     #[test]
     fn empty_and_full_grids_give_no_triangles() {
-        assert!(marching_cubes(&vec![0.0; 27], [3, 3, 3], 0.5)
+        assert!(marching_cubes(&[0.0; 27], [3, 3, 3], 0.5)
             .triangles
             .is_empty());
-        assert!(marching_cubes(&vec![1.0; 27], [3, 3, 3], 0.5)
+        assert!(marching_cubes(&[1.0; 27], [3, 3, 3], 0.5)
             .triangles
             .is_empty());
     }

@@ -22,8 +22,11 @@ pub struct SfmOptions {
     pub camera_model: String,
     /// Most SIFT features per image.
     pub max_features: u32,
-    /// "exhaustive" or "sequential".
+    /// "auto" (posed scenes: pairs chosen from the poses; otherwise exhaustive), "exhaustive",
+    /// "sequential" or "pairs" (posed scenes only).
     pub matcher: String,
+    /// With pose-chosen pairs: match each image with this many neighbours.
+    pub pair_neighbours: usize,
     /// COLMAP's threads (-1 = all cores).
     pub threads: i32,
     /// Replace the output folder if it exists.
@@ -36,7 +39,8 @@ impl Default for SfmOptions {
             downscale: 1,
             camera_model: "SIMPLE_RADIAL".into(),
             max_features: 8192,
-            matcher: "exhaustive".into(),
+            matcher: "auto".into(),
+            pair_neighbours: 12,
             threads: -1,
             overwrite: false,
         }
@@ -200,11 +204,69 @@ fn s(x: impl ToString) -> String {
     x.to_string()
 }
 
+/// Image pairs worth matching for a posed scene: each image with its `k` nearest neighbours by
+/// viewing direction (angle between optical axes, ties broken by centre distance), limited to
+/// axes within 90 degrees. Far fewer than all pairs, and the ones that share a view of the scene.
+pub fn pairs_from_poses(scene: &Scene, k: usize) -> Vec<(usize, usize)> {
+    let axes: Vec<glam::DVec3> = scene
+        .images
+        .iter()
+        .map(|im| im.pose.camera_to_world_dir(glam::DVec3::Z))
+        .collect();
+    let mut pairs = std::collections::BTreeSet::new();
+    for i in 0..scene.images.len() {
+        let mut cand: Vec<(f64, f64, usize)> = (0..scene.images.len())
+            .filter(|&j| j != i && axes[i].dot(axes[j]) > 0.0)
+            .map(|j| {
+                let angle = axes[i].dot(axes[j]).clamp(-1.0, 1.0).acos();
+                (
+                    angle,
+                    (scene.images[i].pose.center() - scene.images[j].pose.center()).length(),
+                    j,
+                )
+            })
+            .collect();
+        cand.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        for &(_, _, j) in cand.iter().take(k) {
+            pairs.insert((i.min(j), i.max(j)));
+        }
+    }
+    pairs.into_iter().collect()
+}
+
+/// Image name → (image id, camera id) from a COLMAP database.
+fn database_ids(db: &Path) -> Result<std::collections::HashMap<String, (u32, u32)>> {
+    let err = |e: rusqlite::Error| Error::format(db, format!("cannot read COLMAP's database: {e}"));
+    let conn =
+        rusqlite::Connection::open_with_flags(db, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+            .map_err(err)?;
+    let mut stmt = conn
+        .prepare("SELECT image_id, name, camera_id FROM images")
+        .map_err(err)?;
+    let rows = stmt
+        .query_map([], |r| {
+            Ok((
+                r.get::<_, String>(1)?,
+                (r.get::<_, u32>(0)?, r.get::<_, u32>(2)?),
+            ))
+        })
+        .map_err(err)?;
+    rows.collect::<std::result::Result<_, _>>().map_err(err)
+}
+
+/// Where the features of the staged images get matched.
+struct MatchPlan<'a> {
+    /// Pairs (indices into `staged`) for a posed scene, or None.
+    pairs: Option<&'a [(usize, usize)]>,
+    staged: &'a [String],
+}
+
 fn extract_and_match(
     program: &Path,
     work: &Path,
     opts: &SfmOptions,
     camera_args: &[String],
+    plan: MatchPlan,
     log: &Path,
 ) -> Result<()> {
     let db = work.join("database.db");
@@ -223,28 +285,44 @@ fn extract_and_match(
     ];
     args.extend_from_slice(camera_args);
     run_colmap(program, &args, log)?;
-    let matcher = match opts.matcher.as_str() {
-        "exhaustive" => "exhaustive_matcher",
-        "sequential" => "sequential_matcher",
-        m => {
+    let mut args = match (opts.matcher.as_str(), plan.pairs) {
+        ("auto" | "pairs", Some(pairs)) => {
+            let list = work.join("pairs.txt");
+            let text: String = pairs
+                .iter()
+                .map(|&(i, j)| format!("{} {}\n", plan.staged[i], plan.staged[j]))
+                .collect();
+            std::fs::write(&list, text).map_err(|e| Error::io(&list, e))?;
+            vec![
+                s("matches_importer"),
+                s("--match_list_path"),
+                list.display().to_string(),
+                s("--match_type"),
+                s("pairs"),
+            ]
+        }
+        ("pairs", None) => {
+            return Err(Error::invalid(
+                "--matcher pairs needs a posed scene (pairs are chosen from the poses)",
+            ))
+        }
+        ("auto" | "exhaustive", _) => vec![s("exhaustive_matcher")],
+        ("sequential", _) => vec![s("sequential_matcher")],
+        (m, _) => {
             return Err(Error::invalid(format!(
-                "unknown matcher '{m}': use exhaustive or sequential"
+                "unknown matcher '{m}': use auto, exhaustive, sequential or pairs"
             )))
         }
     };
-    run_colmap(
-        program,
-        &[
-            s(matcher),
-            s("--database_path"),
-            db.display().to_string(),
-            s("--SiftMatching.use_gpu"),
-            s("0"),
-            s("--SiftMatching.num_threads"),
-            opts.threads.to_string(),
-        ],
-        log,
-    )
+    args.extend([
+        s("--database_path"),
+        db.display().to_string(),
+        s("--SiftMatching.use_gpu"),
+        s("0"),
+        s("--SiftMatching.num_threads"),
+        opts.threads.to_string(),
+    ]);
+    run_colmap(program, &args, log)
 }
 
 /// Full reconstruction of the images in `images_dir`; writes `out/sparse/0` and links
@@ -284,6 +362,10 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
             s("--ImageReader.camera_model"),
             opts.camera_model.clone(),
         ],
+        MatchPlan {
+            pairs: None,
+            staged: &staged,
+        },
         &log,
     )?;
     let sparse = work.path().join("sparse");
@@ -391,7 +473,7 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             .join(","),
     ];
     if !single {
-        // Per-image cameras: COLMAP numbers them in image order.
+        // One camera per image; the ids come from COLMAP's database below.
         let cams: Vec<_> = known
             .images
             .iter()
@@ -409,7 +491,35 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             im.camera = i;
         }
     }
-    extract_and_match(&program, work.path(), opts, &cam_args, &log)?;
+    let pairs = pairs_from_poses(scene, opts.pair_neighbours);
+    eprintln!(
+        "  matching {} image pairs chosen from the poses",
+        pairs.len()
+    );
+    extract_and_match(
+        &program,
+        work.path(),
+        opts,
+        &cam_args,
+        MatchPlan {
+            pairs: Some(&pairs),
+            staged: &staged,
+        },
+        &log,
+    )?;
+    // COLMAP numbers images and cameras as its extractor threads finish, not in list order:
+    // take the ids from its database so the known model lines up with it.
+    let ids = database_ids(&work.path().join("database.db"))?;
+    for im in known.images.iter_mut() {
+        let &(image_id, camera_id) = ids.get(&im.name).ok_or_else(|| {
+            Error::external(
+                "colmap feature_extractor",
+                format!("image '{}' is missing from its database", im.name),
+            )
+        })?;
+        im.id = image_id;
+        known.cameras[im.camera].id = camera_id;
+    }
     let input = work.path().join("known");
     colmap::write_model(&known, &input, ModelFormat::Text)?;
     let tri = work.path().join("triangulated");

@@ -386,30 +386,6 @@ fn classify_views(
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn farthest_point_sampling_spreads_out() {
-        let pts: Vec<DVec2> = (0..100)
-            .map(|i| DVec2::new((i % 10) as f64, (i / 10) as f64))
-            .collect();
-        let s = farthest_point_sample(&pts, 5);
-        assert_eq!(s.len(), 5);
-        // The four corners are among the picks after the central start.
-        for c in [
-            DVec2::new(0.0, 0.0),
-            DVec2::new(9.0, 0.0),
-            DVec2::new(0.0, 9.0),
-            DVec2::new(9.0, 9.0),
-        ] {
-            assert!(s.contains(&c), "{c} not in {s:?}");
-        }
-        assert_eq!(farthest_point_sample(&pts[..3], 5).len(), 3);
-    }
-}
-
 /// Several objects in one pass: Algorithm 1 for each (the segmenter's embedding cache makes every
 /// view's encoder run once for all objects), then overlaps settled: a pixel claimed by two
 /// objects goes to the one nearer the camera in that view (median depth of its points), since
@@ -533,4 +509,28 @@ pub fn projection_baseline(
         views,
         points,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn farthest_point_sampling_spreads_out() {
+        let pts: Vec<DVec2> = (0..100)
+            .map(|i| DVec2::new((i % 10) as f64, (i / 10) as f64))
+            .collect();
+        let s = farthest_point_sample(&pts, 5);
+        assert_eq!(s.len(), 5);
+        // The four corners are among the picks after the central start.
+        for c in [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(9.0, 0.0),
+            DVec2::new(0.0, 9.0),
+            DVec2::new(9.0, 9.0),
+        ] {
+            assert!(s.contains(&c), "{c} not in {s:?}");
+        }
+        assert_eq!(farthest_point_sample(&pts[..3], 5).len(), 3);
+    }
 }

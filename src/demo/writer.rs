@@ -1,0 +1,213 @@
+//! Writing the demo's rasters and truth: colour PNGs, depth (16-bit PNG millimetres and f32 EXR
+//! metres), per-object masks, and the per-object truth record (`truth/objects.json`).
+
+use super::render::ViewRender;
+use crate::error::{Error, Result};
+use crate::util::atomic::save_image_atomic;
+use crate::util::write_atomic;
+use image::{DynamicImage, GrayImage, ImageBuffer, Luma, RgbImage};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What `truth/objects.json` says about one object.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectTruth {
+    pub name: String,
+    /// The view the suggested click is in (view 0's image name).
+    pub view: String,
+    /// The interior point of the object's mask in `view` farthest from its edge, in pixel
+    /// coordinates (pixel centres at +0.5, DESIGN.md §2).
+    pub click: [f64; 2],
+    /// Per image name: the fraction of the object's full silhouette that is unoccluded and in
+    /// frame.
+    pub visible: BTreeMap<String, f64>,
+    pub bbox_min: [f64; 3],
+    pub bbox_max: [f64; 3],
+}
+
+#[derive(Serialize, Deserialize)]
+struct ObjectsFile {
+    objects: Vec<ObjectTruth>,
+}
+
+/// Read `truth/objects.json` of a demo scene folder.
+pub fn read_truth(scene_dir: &Path) -> Result<Vec<ObjectTruth>> {
+    let path = scene_dir.join("truth/objects.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let file: ObjectsFile = serde_json::from_str(&text).map_err(|e| Error::json(&path, e))?;
+    Ok(file.objects)
+}
+
+pub fn write_truth(path: &Path, objects: &[ObjectTruth]) -> Result<()> {
+    let file = ObjectsFile {
+        objects: objects.to_vec(),
+    };
+    let text = serde_json::to_string_pretty(&file).map_err(|e| Error::json(path, e))?;
+    write_atomic(path, |w| w.write_all(text.as_bytes()))
+}
+
+/// Write one view: `images/<name>`, `truth/depth/<stem>.{png,exr}` and
+/// `truth/masks/<object>/<name>` for every object.
+pub fn write_view(root: &Path, name: &str, w: u32, h: u32, r: &ViewRender) -> Result<()> {
+    let stem = Path::new(name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| name.to_string());
+    let rgb = RgbImage::from_raw(w, h, r.rgb.clone()).expect("buffer has w*h*3 bytes");
+    save_image_atomic(
+        &root.join("images").join(name),
+        &DynamicImage::ImageRgb8(rgb),
+    )?;
+
+    let (png, exr) = depth_paths(root, &stem);
+    let mm: ImageBuffer<Luma<u16>, Vec<u16>> = ImageBuffer::from_fn(w, h, |x, y| {
+        let d = r.depth[(y * w + x) as usize] as f64;
+        Luma([(d * 1000.0).round().clamp(0.0, 65535.0) as u16])
+    });
+    save_image_atomic(&png, &DynamicImage::ImageLuma16(mm))?;
+    write_exr_depth(&exr, w, h, &r.depth)?;
+
+    for (i, obj) in super::OBJECT_NAMES.iter().enumerate() {
+        let mask = GrayImage::from_fn(w, h, |x, y| {
+            Luma([if r.ids[(y * w + x) as usize] == i as u8 {
+                255
+            } else {
+                0
+            }])
+        });
+        let path = root.join("truth/masks").join(obj).join(name);
+        save_image_atomic(&path, &DynamicImage::ImageLuma8(mask))?;
+    }
+    Ok(())
+}
+
+/// Write a depth map (metres) as an uncompressed scanline OpenEXR with the depth in its R, G and
+/// B channels (f32), so any reader finds it in the first channel. Written by hand because the
+/// image crate's encoder writes blocks in completion order (line order RANDOM_Y), which makes
+/// the bytes differ between runs; this file has increasing line order and is byte-stable.
+pub fn write_exr_depth(path: &Path, w: u32, h: u32, depth: &[f32]) -> Result<()> {
+    fn attr(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
+        out.extend_from_slice(name.as_bytes());
+        out.push(0);
+        out.extend_from_slice(kind.as_bytes());
+        out.push(0);
+        out.extend_from_slice(&(value.len() as i32).to_le_bytes());
+        out.extend_from_slice(value);
+    }
+    let i32s = |v: &[i32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let mut out = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+    let mut chlist = Vec::new();
+    // Channels in alphabetical order, as OpenEXR requires: FLOAT (2), linear 0, sampling 1x1.
+    for name in ["B", "G", "R"] {
+        chlist.extend_from_slice(name.as_bytes());
+        chlist.push(0);
+        chlist.extend_from_slice(&i32s(&[2, 0, 1, 1]));
+    }
+    chlist.push(0);
+    attr(&mut out, "channels", "chlist", &chlist);
+    attr(&mut out, "compression", "compression", &[0]);
+    let window = i32s(&[0, 0, w as i32 - 1, h as i32 - 1]);
+    attr(&mut out, "dataWindow", "box2i", &window);
+    attr(&mut out, "displayWindow", "box2i", &window);
+    attr(&mut out, "lineOrder", "lineOrder", &[0]);
+    attr(&mut out, "pixelAspectRatio", "float", &1f32.to_le_bytes());
+    attr(&mut out, "screenWindowCenter", "v2f", &[0; 8]);
+    attr(&mut out, "screenWindowWidth", "float", &1f32.to_le_bytes());
+    out.push(0);
+    // Offset table: one uncompressed scanline per block.
+    let row_bytes = 3 * 4 * w as usize;
+    let first = out.len() + 8 * h as usize;
+    for y in 0..h as usize {
+        out.extend_from_slice(&((first + y * (8 + row_bytes)) as u64).to_le_bytes());
+    }
+    for y in 0..h as usize {
+        out.extend_from_slice(&(y as i32).to_le_bytes());
+        out.extend_from_slice(&(row_bytes as i32).to_le_bytes());
+        let row = &depth[y * w as usize..(y + 1) * w as usize];
+        for _channel in 0..3 {
+            for d in row {
+                out.extend_from_slice(&d.to_le_bytes());
+            }
+        }
+    }
+    write_atomic(path, |wr| wr.write_all(&out))
+}
+
+/// Where a view's truth depth maps go (PNG millimetres, EXR metres).
+pub fn depth_paths(root: &Path, stem: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let d = root.join("truth/depth");
+    (d.join(format!("{stem}.png")), d.join(format!("{stem}.exr")))
+}
+
+/// The mask pixel farthest from the mask's edge (Euclidean distance to the nearest pixel outside
+/// the mask or the image), as pixel-centre coordinates; `None` for an empty mask. Exact by brute
+/// force over the boundary pixels, which is cheap at demo sizes. Ties go to the first in raster
+/// order, so the result is deterministic.
+pub fn farthest_interior(mask: &[bool], w: usize, h: usize) -> Option<[f64; 2]> {
+    let inside = |x: i64, y: i64| {
+        x >= 0
+            && y >= 0
+            && (x as usize) < w
+            && (y as usize) < h
+            && mask[y as usize * w + x as usize]
+    };
+    let mut outside_edge = Vec::new();
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            if !inside(x, y)
+                && [(1, 0), (-1, 0), (0, 1), (0, -1)]
+                    .iter()
+                    .any(|(dx, dy)| inside(x + dx, y + dy))
+            {
+                outside_edge.push((x as f64, y as f64));
+            }
+        }
+    }
+    let mut best: Option<(f64, usize)> = None;
+    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        // The image border counts as outside (a pixel just past it).
+        let mut d2 = [x + 1.0, y + 1.0, w as f64 - x, h as f64 - y]
+            .iter()
+            .fold(f64::INFINITY, |a, &b| a.min(b * b));
+        for &(ox, oy) in &outside_edge {
+            d2 = d2.min((ox - x).powi(2) + (oy - y).powi(2));
+        }
+        if best.is_none_or(|(b, _)| d2 > b) {
+            best = Some((d2, i));
+        }
+    }
+    best.map(|(_, i)| [(i % w) as f64 + 0.5, (i / w) as f64 + 0.5])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_depth_reads_back_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("d.exr");
+        let (w, h) = (7, 5);
+        let depth: Vec<f32> = (0..w * h).map(|i| 0.25 + i as f32 * 0.37).collect();
+        write_exr_depth(&p, w, h, &depth).unwrap();
+        let img = image::open(&p).unwrap().to_rgb32f();
+        assert_eq!(img.dimensions(), (w, h));
+        let back: Vec<f32> = img.pixels().map(|px| px[0]).collect();
+        assert_eq!(back, depth);
+    }
+
+    #[test]
+    fn farthest_interior_of_a_square_is_its_centre() {
+        let (w, h) = (20, 15);
+        let mut m = vec![false; w * h];
+        for y in 3..10 {
+            for x in 5..12 {
+                m[y * w + x] = true;
+            }
+        }
+        assert_eq!(farthest_interior(&m, w, h), Some([8.5, 6.5]));
+        assert_eq!(farthest_interior(&vec![false; w * h], w, h), None);
+    }
+}
