@@ -179,7 +179,7 @@ pub fn camera_views(scene: &crate::Scene, downscale: u32) -> Vec<View> {
 }
 
 /// Render every view of `scene`: `<name>.png` (RGB on white), `<name>_alpha.png` and
-/// `<name>_depth.png` (16-bit millimetres, 0 = empty) into `out`. Returns the files written.
+/// `<name>_depth.png` (z-depth, 16-bit millimetres, 0 = empty) into `out`. Returns the files written.
 pub fn render(model: &Path, scene: &Path, out: &Path, downscale: Option<u32>) -> Result<usize> {
     let m = io::load(model)?;
     let ds = downscale.unwrap_or_else(|| model_downscale(&m));
@@ -205,9 +205,10 @@ pub fn render(model: &Path, scene: &Path, out: &Path, downscale: Option<u32>) ->
         });
         let depth =
             image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(r.width, r.height, |x, y| {
-                image::Luma([(r.depth[(y * r.width + x) as usize] * 1000.0)
-                    .round()
-                    .clamp(0.0, 65535.0) as u16])
+                // z-depth, as depth images store it, from the distance along the ray.
+                let i = y * r.width + x;
+                let z = r.depth[i as usize] / v.ray_scale(i);
+                image::Luma([(z * 1000.0).round().clamp(0.0, 65535.0) as u16])
             });
         let save = |name: String, img: image::DynamicImage| {
             crate::util::atomic::save_image_atomic(&dir.path().join(name), &img)
