@@ -19,7 +19,9 @@
 //! - **Density post-activated** as DVGO: interpolate the raw value, then softplus and alpha, so a
 //!   cell can hold a sharp surface; `delta` is in finest-voxel units so coarse-to-fine growth keeps
 //!   densities meaningful.
-//! - **Box and occupancy from the masks' visual hull**, carved at the first stage's cells; cells
+//! - **Box and occupancy from the masks' visual hull** (voting: a point survives if at most 20%
+//!   of the views that see it show background there, so occlusions in visible-part masks do not
+//!   cut the object), carved at the first stage's cells; cells
 //!   whose densest corner has alpha < 1e-4 are pruned every 100 steps (exact: post-activation is
 //!   monotone, and such samples are dropped anyway). Empty 8^3-cell blocks are jumped over.
 //! - **Deterministic multi-threading**: fixed 256-ray chunks with per-ray seeded randomness write
@@ -52,6 +54,20 @@
 //! Contention varied between rows (the last row's run got 96 CPU-s of its 90 s, earlier rows
 //! 50-65), so differences under ~1 dB are not conclusive; the direction (smaller batches, cheaper
 //! steps, SH1) held across sizes.
+
+//! # Headline runs (default settings; `examples/results/field_lego.json`)
+//! | size | budget | test PSNR | SSIM | steps | train CPU s | grid (vertices) | peak RSS |
+//! |---|---|---|---|---|---|---|---|
+//! | 100^2 | 30 s | 30.20 | 0.958 | 1235 | 20 | 57x93x65 (0.34 M) | 75 MiB |
+//! | 100^2 | 90 s | 31.85 | 0.972 | 4990 | 44 | 57x93x65 | 76 MiB |
+//! | 200^2 | 90 s | 28.3-29.1 | 0.93-0.94 | 1476-2022 | 46-66 | 109x185x129 (2.6 M) | 400 MiB |
+//! | 200^2 | 300 s | 31.9-32.2 | 0.969-0.971 | 8106-9946 | 191-209 | 109x185x129 | 400 MiB |
+//! | 400^2 | 300 s | 29.07 | 0.939 | 4837 | 195 | 133x233x157 (4.9 M, 1 GiB budget) | 828 MiB |
+//!
+//! Demo scene (`objnerf demo-scene`, 36 views 320x240), `--masks truth:mug`, 40 s: 94% of the
+//! rays pruned (16x), 42.7 dB on its training views on white; median depth error 8.0 mm (2.0% of
+//! the box diagonal) without depth, 7.0 mm (1.7%) with `--depth dense`. The voxel is 6.6 mm, so
+//! the 1% goal needs a finer grid than the one-voxel-per-pixel rule gives.
 
 pub mod commands;
 pub mod depth;
