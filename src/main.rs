@@ -57,6 +57,21 @@ enum Command {
         #[arg(long)]
         overwrite: bool,
     },
+    /// The models directory ($OBJNERF_HOME, default <cache dir>/objnerf): install and list.
+    Models {
+        #[command(subcommand)]
+        action: objnerf::segment::cli::ModelsCmd,
+    },
+    /// Segment objects in every view from clicks in one (Obj-NeRF's Algorithm 1): masks, segmented
+    /// points, contact sheets and report.json.
+    Segment(objnerf::segment::run::SegmentCmd),
+    /// Segment one image with SAM from point and box prompts; writes the mask and an overlay.
+    SegmentView(objnerf::segment::cli::SegmentViewCmd),
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        what: objnerf::segment::cli::BenchSamCmd,
+    },
     /// Write the built-in synthetic scene (four textured objects, a camera ring, a COLMAP model
     /// with true tracks, and truth masks, depth and meshes).
     /// The main job on the built-in demo scene: render it with its truth, then describe it.
@@ -203,6 +218,10 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
+        Command::Models { action } => action.run(),
+        Command::SegmentView(cmd) => cmd.run(),
+        Command::Segment(cmd) => cmd.run(&std::env::args().collect::<Vec<_>>()),
+        Command::Bench { what } => what.run(),
         Command::Demo { out } => {
             let scene_dir = out.join("scene");
             let opts = objnerf::demo::DemoOptions {

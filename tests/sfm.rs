@@ -86,10 +86,12 @@ fn lego_is_triangulated_with_its_known_poses() {
     let model = Scene::load(&out).unwrap();
     assert_eq!(model.images.len(), 100);
     assert!(model.points.len() > 1000, "{} points", model.points.len());
-    // Poses and intrinsics are lego's own, at full resolution.
+    // Poses and intrinsics are lego's own, at full resolution (lego's matrices are f32-rounded,
+    // so its rotations are orthonormal only to ~1e-7: the COLMAP quaternion form agrees to that).
     for im in &model.images {
         let k = original.find_image(&im.name).unwrap();
-        assert!((im.pose.center() - original.images[k].pose.center()).length() < 1e-9);
+        let d = (im.pose.center() - original.images[k].pose.center()).length();
+        assert!(d < 1e-5, "{} moved by {d}", im.name);
         let cam = model.camera_of(im);
         assert_eq!((cam.width, cam.height), (800, 800));
         assert!((cam.focal().0 - 1111.111).abs() < 0.01);

@@ -1,5 +1,33 @@
 //! Segment Anything (MobileSAM) through ONNX Runtime, and multi-view segmentation.
+//!
+//! - [`models`]: the models directory (`$OBJNERF_HOME`) and `objnerf models install/list`.
+//! - [`sam`]: the [`Segmenter`] (encoder once per image, decoder per prompt set).
+//! - [`prompt`], [`preprocess`], [`mask`]: SAM's inputs and outputs, exactly as SAM defines them.
+//! - [`cache`]: embeddings keyed by image content and model, in memory and on disk.
+//! - [`view`]: `objnerf segment-view`; [`bench`]: `objnerf bench sam` (ours against Python
+//!   onnxruntime in the same run).
+//! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
+//! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation.
+
+pub mod bench;
+pub mod cache;
+pub mod cli;
 pub mod distance;
 pub mod hull;
+pub mod mask;
+pub mod models;
 pub mod output;
+pub mod preprocess;
+pub mod prompt;
 pub mod propagate;
+pub mod run;
+pub mod sam;
+pub mod scene_views;
+pub mod view;
+pub mod zoom;
+
+pub use cache::Embedding;
+pub use mask::Mask;
+pub use models::ModelsDir;
+pub use prompt::{Point, Prompts};
+pub use sam::{Segmenter, SegmenterOptions};

@@ -1,0 +1,504 @@
+//! `objnerf bench sam`: encoder and decoder time of our ONNX Runtime path against Python
+//! onnxruntime (same version, same ONNX files, same prepared inputs, same thread count), measured
+//! in one run and interleaved run by run, so that noise from other work on the machine hits both
+//! sides alike. The benchmark sets up its own Python venv. Writes JSON and an SVG chart.
+
+use super::models::{ModelsDir, ONNXRUNTIME_VERSION};
+use super::preprocess::encoder_input;
+use super::prompt::Prompts;
+use super::sam::{Segmenter, SegmenterOptions};
+use crate::error::{Error, Result};
+use image::RgbImage;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+
+const PY_BENCH: &str = include_str!("bench_sam.py");
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Images to encode (cycled run by run). Empty: one synthetic 800 x 600 image.
+    pub images: Vec<PathBuf>,
+    /// Timed runs per backend and model (at least 5); one untimed warm-up run comes first.
+    pub runs: usize,
+    /// 0 = all available cores; the same number goes to both backends.
+    pub threads: usize,
+    /// Where the JSON and the chart go.
+    pub out_dir: PathBuf,
+    /// The venv to use or create; default `<models dir>/venvs/bench-onnxruntime-<version>`.
+    pub venv: Option<PathBuf>,
+}
+
+/// Summary of a list of timings, in seconds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Stats {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+    pub p25: f64,
+    pub p75: f64,
+    pub mean: f64,
+    pub runs: Vec<f64>,
+}
+
+impl Stats {
+    pub fn of(v: &[f64]) -> Stats {
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            if s.is_empty() {
+                return f64::NAN;
+            }
+            let x = p * (s.len() - 1) as f64;
+            let (i, f) = (x.floor() as usize, x.fract());
+            s[i] + (s[(i + 1).min(s.len() - 1)] - s[i]) * f
+        };
+        Stats {
+            median: q(0.5),
+            min: s.first().copied().unwrap_or(f64::NAN),
+            max: s.last().copied().unwrap_or(f64::NAN),
+            p25: q(0.25),
+            p75: q(0.75),
+            mean: s.iter().sum::<f64>() / s.len().max(1) as f64,
+            runs: v.to_vec(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BackendTimes {
+    pub name: String,
+    pub load_seconds: f64,
+    pub encoder: Stats,
+    pub decoder: Stats,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchReport {
+    pub command: String,
+    pub machine: Machine,
+    pub git_commit: Option<String>,
+    pub onnxruntime_version: String,
+    pub threads: usize,
+    pub images: Vec<String>,
+    pub runs: usize,
+    pub ours: BackendTimes,
+    pub python: BackendTimes,
+    /// ours / Python, medians.
+    pub encoder_ratio: f64,
+    pub decoder_ratio: f64,
+    /// Median of the per-round ratios (each round runs both backends back to back, so this is
+    /// the least sensitive to a machine whose load changes over the run).
+    pub encoder_paired_ratio: f64,
+    /// The goal: encoder median within 1.1 x Python's.
+    pub encoder_goal_met: bool,
+    /// Our resize + normalise + pad per image (not part of the comparison: both backends are
+    /// given the same prepared tensor).
+    pub ours_preprocess: Stats,
+    /// Largest absolute difference between the two backends' embeddings of the first image.
+    pub embedding_max_abs_diff: f64,
+    pub json: PathBuf,
+    pub chart: PathBuf,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Machine {
+    pub cpu: String,
+    pub cores: usize,
+    pub os: String,
+}
+
+pub fn machine() -> Machine {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into());
+    Machine {
+        cpu,
+        cores: std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1),
+        os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
+    }
+}
+
+fn git_commit() -> Option<String> {
+    let out = Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()?;
+    out.status
+        .success()
+        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+/// The venv's interpreter, creating the venv (and installing onnxruntime, numpy, pillow) if it is
+/// missing or broken.
+pub fn ensure_venv(venv: &Path) -> Result<PathBuf> {
+    let py = venv.join("bin").join("python");
+    let check = format!(
+        "import onnxruntime, numpy; assert onnxruntime.__version__ == '{ONNXRUNTIME_VERSION}'"
+    );
+    let ok = |py: &Path| {
+        Command::new(py)
+            .args(["-c", &check])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if py.is_file() && ok(&py) {
+        return Ok(py);
+    }
+    eprintln!(
+        "setting up the benchmark's Python venv in {} ...",
+        venv.display()
+    );
+    let status = Command::new(super::models::python())
+        .args(["-m", "venv"])
+        .arg(venv)
+        .status()
+        .map_err(|e| Error::external("python3 -m venv", e.to_string()))?;
+    if !status.success() {
+        return Err(Error::external(
+            "python3 -m venv",
+            format!("failed: {status}"),
+        ));
+    }
+    let out = Command::new(&py)
+        .args(["-m", "pip", "install", "--quiet"])
+        .arg(format!("onnxruntime=={ONNXRUNTIME_VERSION}"))
+        .args(["numpy", "pillow"])
+        .output()
+        .map_err(|e| Error::external("pip install", e.to_string()))?;
+    if !out.status.success() || !ok(&py) {
+        return Err(Error::external(
+            "pip install onnxruntime numpy pillow",
+            String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        ));
+    }
+    Ok(py)
+}
+
+/// The Python side: a process that loads both sessions once and then times one run per command.
+struct PyBench {
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+}
+
+impl PyBench {
+    fn start(
+        py: &Path,
+        script: &Path,
+        dir: &ModelsDir,
+        threads: usize,
+        work: &Path,
+    ) -> Result<(Self, f64)> {
+        let mut child = Command::new(py)
+            .arg(script)
+            .arg(dir.encoder())
+            .arg(dir.decoder())
+            .arg(threads.to_string())
+            .arg(work)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|e| Error::external("python benchmark", e.to_string()))?;
+        let stdin = child.stdin.take().expect("piped");
+        let stdout = BufReader::new(child.stdout.take().expect("piped"));
+        let mut me = PyBench {
+            child,
+            stdin,
+            stdout,
+        };
+        let ready = me.read()?;
+        Ok((me, ready["load_seconds"].as_f64().unwrap_or(f64::NAN)))
+    }
+
+    fn read(&mut self) -> Result<serde_json::Value> {
+        let mut line = String::new();
+        self.stdout
+            .read_line(&mut line)
+            .map_err(|e| Error::external("python benchmark", e.to_string()))?;
+        serde_json::from_str(&line).map_err(|_| {
+            Error::external(
+                "python benchmark",
+                format!("unexpected reply {line:?} (see its error output above)"),
+            )
+        })
+    }
+
+    fn time(&mut self, cmd: &str) -> Result<f64> {
+        writeln!(self.stdin, "{cmd}")
+            .and_then(|_| self.stdin.flush())
+            .map_err(|e| Error::external("python benchmark", e.to_string()))?;
+        let v = self.read()?;
+        v["seconds"]
+            .as_f64()
+            .ok_or_else(|| Error::external("python benchmark", format!("bad reply {v}")))
+    }
+}
+
+impl Drop for PyBench {
+    fn drop(&mut self) {
+        let _ = writeln!(self.stdin, "quit");
+        let _ = self.child.wait();
+    }
+}
+
+fn write_f32(path: &Path, v: &[f32]) -> Result<()> {
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))
+}
+
+fn read_f32(path: &Path) -> Result<Vec<f32>> {
+    let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    Ok(b.chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
+}
+
+/// A synthetic image (smooth colours and a disc) when no image is given.
+fn synthetic() -> RgbImage {
+    RgbImage::from_fn(800, 600, |x, y| {
+        let d = ((x as f32 - 400.0).powi(2) + (y as f32 - 300.0).powi(2)).sqrt();
+        if d < 150.0 {
+            image::Rgb([200, 40, 40])
+        } else {
+            image::Rgb([(x / 4) as u8, (y / 3) as u8, 128])
+        }
+    })
+}
+
+pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
+    let runs = opts.runs.max(5);
+    let lib = dir.require_library()?;
+    let (enc, dec) = dir.require_sam()?;
+    let so = SegmenterOptions {
+        threads: opts.threads,
+        disk_cache: None,
+    };
+    let seg = Segmenter::from_files(&lib, &enc, &dec, &so)?;
+    let threads = seg.threads();
+
+    let mut images = Vec::new();
+    let mut names = Vec::new();
+    for p in &opts.images {
+        images.push(super::view::load_rgb(p)?);
+        names.push(p.display().to_string());
+    }
+    if images.is_empty() {
+        images.push(synthetic());
+        names.push("synthetic 800x600".into());
+    }
+
+    // Both backends get the same prepared tensors; the prompt is one click at the image centre.
+    let work = tempfile::Builder::new()
+        .prefix("objnerf-bench-")
+        .tempdir()
+        .map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let mut inputs = Vec::new();
+    let mut embs = Vec::new();
+    let mut spec = Vec::new();
+    for (i, img) in images.iter().enumerate() {
+        let (t, _) = encoder_input(img);
+        write_f32(&work.path().join(format!("img{i}.f32")), &t)?;
+        inputs.push(t);
+        let emb = seg.embed(img)?;
+        write_f32(&work.path().join(format!("emb{i}.f32")), &emb.data)?;
+        let prompts = Prompts::click(img.width() as f32 / 2.0, img.height() as f32 / 2.0);
+        let (coords, labels) = prompts.decoder_inputs(emb.scale);
+        spec.push(serde_json::json!({
+            "coords": coords, "labels": labels, "h": img.height(), "w": img.width()
+        }));
+        embs.push((emb, prompts));
+    }
+    let spec_path = work.path().join("spec.json");
+    std::fs::write(&spec_path, serde_json::to_vec(&spec).expect("json"))
+        .map_err(|e| Error::io(&spec_path, e))?;
+    let script = work.path().join("bench_sam.py");
+    std::fs::write(&script, PY_BENCH).map_err(|e| Error::io(&script, e))?;
+
+    let venv = opts.venv.clone().unwrap_or_else(|| {
+        dir.root
+            .join("venvs")
+            .join(format!("bench-onnxruntime-{ONNXRUNTIME_VERSION}"))
+    });
+    let py = ensure_venv(&venv)?;
+    let (mut pyb, py_load) = PyBench::start(&py, &script, dir, threads, work.path())?;
+
+    // Correctness first: the two backends must compute the same embedding.
+    let saved = work.path().join("py_emb0.f32");
+    pyb.time(&format!("enc 0 {}", saved.display()))?;
+    let py_emb = read_f32(&saved)?;
+    let diff = py_emb
+        .iter()
+        .zip(&embs[0].0.data)
+        .map(|(a, b)| (a - b).abs() as f64)
+        .fold(0.0, f64::max);
+    // Warm-up (untimed) for ours; Python's warm-up was the run above.
+    seg.run_encoder(&inputs[0])?;
+    seg.predict_allow_empty(&embs[0].0, &embs[0].1)?;
+    pyb.time("dec 0")?;
+
+    let (mut oe, mut pe, mut od, mut pd) = (vec![], vec![], vec![], vec![]);
+    let mut prep = vec![];
+    for r in 0..runs {
+        let i = r % images.len();
+        eprintln!("run {}/{runs}", r + 1);
+        let t0 = std::time::Instant::now();
+        std::hint::black_box(encoder_input(&images[i]));
+        prep.push(t0.elapsed().as_secs_f64());
+        // Alternate who goes first so that a slow phase on the machine is shared fairly.
+        let ours_first = r % 2 == 0;
+        for pass in 0..2 {
+            if (pass == 0) == ours_first {
+                oe.push(seg.run_encoder(&inputs[i])?.1);
+            } else {
+                pe.push(pyb.time(&format!("enc {i}"))?);
+            }
+        }
+        for _ in 0..3 {
+            for pass in 0..2 {
+                if (pass == 0) == ours_first {
+                    od.push(
+                        seg.predict_allow_empty(&embs[i].0, &embs[i].1)?
+                            .decoder_seconds,
+                    );
+                } else {
+                    pd.push(pyb.time(&format!("dec {i}"))?);
+                }
+            }
+        }
+    }
+    drop(pyb);
+
+    let ours = BackendTimes {
+        name: "objnerf (Rust, ort crate)".into(),
+        load_seconds: seg.load_seconds,
+        encoder: Stats::of(&oe),
+        decoder: Stats::of(&od),
+    };
+    let python = BackendTimes {
+        name: "Python onnxruntime".into(),
+        load_seconds: py_load,
+        encoder: Stats::of(&pe),
+        decoder: Stats::of(&pd),
+    };
+    let encoder_ratio = ours.encoder.median / python.encoder.median;
+    let paired: Vec<f64> = oe.iter().zip(&pe).map(|(a, b)| a / b).collect();
+    let json = opts.out_dir.join("bench_sam.json");
+    let chart = opts.out_dir.join("bench_sam.svg");
+    let report = BenchReport {
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        machine: machine(),
+        git_commit: git_commit(),
+        onnxruntime_version: ONNXRUNTIME_VERSION.into(),
+        threads,
+        images: names,
+        runs,
+        encoder_ratio,
+        decoder_ratio: ours.decoder.median / python.decoder.median,
+        encoder_paired_ratio: Stats::of(&paired).median,
+        encoder_goal_met: encoder_ratio <= 1.1,
+        embedding_max_abs_diff: diff,
+        ours_preprocess: Stats::of(&prep),
+        ours,
+        python,
+        json: json.clone(),
+        chart: chart.clone(),
+    };
+    let text = serde_json::to_string_pretty(&report).expect("report serialises");
+    crate::util::atomic::write_bytes_atomic(&json, text.as_bytes())?;
+    let svg = chart_svg(&report).map_err(|e| Error::invalid(format!("chart: {e}")))?;
+    crate::util::atomic::write_bytes_atomic(&chart, svg.as_bytes())?;
+    Ok(report)
+}
+
+/// Two panels (encoder, decoder): every timed run of both backends, in milliseconds, with the
+/// medians as dashed lines.
+fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error::Error>> {
+    use plotters::prelude::*;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (900, 420)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let panels = root.split_evenly((1, 2));
+        let blue = RGBColor(31, 119, 180);
+        let orange = RGBColor(255, 127, 14);
+        for (area, (title, ours, py)) in panels.iter().zip([
+            ("encoder", &r.ours.encoder, &r.python.encoder),
+            ("decoder", &r.ours.decoder, &r.python.decoder),
+        ]) {
+            let ms = |v: &Vec<f64>| v.iter().map(|s| s * 1e3).collect::<Vec<_>>();
+            let (o, p) = (ms(&ours.runs), ms(&py.runs));
+            let hi = o.iter().chain(&p).copied().fold(0.0, f64::max) * 1.15 + 1e-6;
+            let n = o.len().max(p.len()).max(1);
+            let mut c = ChartBuilder::on(area)
+                .caption(
+                    format!(
+                        "{title}: ours/python median {:.2} ({} threads)",
+                        ours.median / py.median,
+                        r.threads
+                    ),
+                    ("sans-serif", 16),
+                )
+                .margin(12)
+                .x_label_area_size(30)
+                .y_label_area_size(50)
+                .build_cartesian_2d(0f64..(n as f64 + 1.0), 0f64..hi)?;
+            c.configure_mesh()
+                .x_desc("run")
+                .y_desc("ms")
+                .disable_x_mesh()
+                .draw()?;
+            for (vals, med, colour, name) in [
+                (&o, ours.median * 1e3, blue, "objnerf (ort crate)"),
+                (&p, py.median * 1e3, orange, "Python onnxruntime"),
+            ] {
+                let pts: Vec<(f64, f64)> = vals
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &v)| (i as f64 + 1.0, v))
+                    .collect();
+                c.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(1)))?
+                    .label(name)
+                    .legend(move |(x, y)| Circle::new((x + 8, y), 4, colour.filled()));
+                c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
+                c.draw_series(DashedLineSeries::new(
+                    vec![(0.0, med), (n as f64 + 1.0, med)],
+                    6,
+                    4,
+                    colour.stroke_width(1),
+                ))?;
+            }
+            c.configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::LowerRight)
+                .draw()?;
+        }
+        root.present()?;
+    }
+    Ok(svg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats() {
+        let s = Stats::of(&[3.0, 1.0, 2.0, 4.0, 5.0]);
+        assert_eq!(
+            (s.median, s.min, s.max, s.p25, s.p75),
+            (3.0, 1.0, 5.0, 2.0, 4.0)
+        );
+        assert_eq!(s.mean, 3.0);
+    }
+}

@@ -1,0 +1,99 @@
+//! SAM as the multi-view propagation's [`ViewSegmenter`]: a scene's view index becomes its image,
+//! decoded once and embedded once (the embedding cache makes the k objects of a run, and later
+//! runs, share the encoder pass).
+
+use super::cache::Embedding;
+use super::prompt::{Point, Prompts};
+use super::propagate::{PointPrompt, ViewMask, ViewSegmenter};
+use super::sam::Segmenter;
+use super::view::load_rgb;
+use super::zoom::ZoomOptions;
+use crate::error::Result;
+use crate::scene::Scene;
+use std::sync::Arc;
+
+pub struct SamViews<'a> {
+    seg: &'a Segmenter,
+    /// The last view's embedding: the propagation asks for the same view several times in a row
+    /// (one per object), so this skips decoding and hashing the image again.
+    last: Option<(usize, Arc<Embedding>)>,
+    /// Re-segment small objects on a crop ([`Segmenter::segment_zoomed`]): sharper edges for one
+    /// more encoder pass per small object and view.
+    zoom: Option<ZoomOptions>,
+    /// Time spent in the encoder (with its preprocessing) and in the decoder, seconds.
+    pub encoder_seconds: f64,
+    pub decoder_seconds: f64,
+}
+
+impl<'a> SamViews<'a> {
+    pub fn new(seg: &'a Segmenter) -> Self {
+        SamViews {
+            seg,
+            last: None,
+            zoom: None,
+            encoder_seconds: 0.0,
+            decoder_seconds: 0.0,
+        }
+    }
+
+    pub fn with_zoom(mut self, zoom: Option<ZoomOptions>) -> Self {
+        self.zoom = zoom;
+        self
+    }
+
+    fn embedding(&mut self, scene: &Scene, view: usize) -> Result<Arc<Embedding>> {
+        if let Some((v, e)) = &self.last {
+            if *v == view {
+                return Ok(e.clone());
+            }
+        }
+        let img = load_rgb(&scene.images[view].path)?;
+        let (e, info) = self.seg.embed_timed(&img)?;
+        self.encoder_seconds += info.encoder_seconds + info.preprocess_seconds;
+        self.last = Some((view, e.clone()));
+        Ok(e)
+    }
+}
+
+impl ViewSegmenter for SamViews<'_> {
+    /// An empty mask is returned as such (not an error): for the propagation it is evidence that
+    /// the object is hidden in this view.
+    fn segment(
+        &mut self,
+        scene: &Scene,
+        view: usize,
+        prompts: &[PointPrompt],
+        bbox: Option<[f64; 4]>,
+    ) -> Result<ViewMask> {
+        let emb = self.embedding(scene, view)?;
+        let p = Prompts {
+            points: prompts
+                .iter()
+                .map(|p| Point {
+                    x: p.xy[0] as f32,
+                    y: p.xy[1] as f32,
+                    positive: p.positive,
+                })
+                .collect(),
+            bbox: bbox.map(|b| [b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32]),
+            mask_input: None,
+        };
+        let m = match &self.zoom {
+            // Zooming needs the image and a non-empty first mask; an empty one stays empty.
+            Some(z) => {
+                let img = load_rgb(&scene.images[view].path)?;
+                match self.seg.segment_zoomed(&img, &p, z) {
+                    Ok(m) => m,
+                    Err(_) => self.seg.predict_allow_empty(&emb, &p)?,
+                }
+            }
+            None => self.seg.predict_allow_empty(&emb, &p)?,
+        };
+        self.decoder_seconds += m.decoder_seconds;
+        Ok(ViewMask {
+            mask: m.to_image(),
+            score: m.score,
+            logits: Some(m.logits),
+        })
+    }
+}
