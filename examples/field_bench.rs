@@ -1,0 +1,149 @@
+//! Lego benchmark for the object field: train at a downscale on the 100 train views within a time
+//! budget, evaluate on the test views (composited on white), print one JSON object (and write it
+//! to `--json PATH` if given).
+//!
+//! cargo run --release --example field_bench -- DATA_DIR DOWNSCALE SECONDS [SH_DEGREE] [STEPS]
+//!
+//! Environment overrides for sweeps: FIELD_BATCH, FIELD_STEP (sample spacing in voxels),
+//! FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and grid scale), FIELD_PRUNE (steps
+//! between occupancy updates), FIELD_TV ("density,colour"), FIELD_LR ("density,colour"),
+//! FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB.
+
+use objnerf::field::{self, MaskSource, SetupConfig, StopRule, TrainConfig};
+use std::path::PathBuf;
+
+fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
+    std::env::var(name).ok().and_then(|v| v.parse().ok())
+}
+
+fn pair(name: &str) -> Option<(f32, f32)> {
+    let v = std::env::var(name).ok()?;
+    let (a, b) = v.split_once(',')?;
+    Some((a.parse().ok()?, b.parse().ok()?))
+}
+
+fn cpu_seconds() -> f64 {
+    // utime + stime of this process from /proc (Linux); 0 elsewhere.
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    let after = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<&str> = after.split_whitespace().collect();
+    let ticks: f64 = f.get(11).and_then(|v| v.parse().ok()).unwrap_or(0.0)
+        + f.get(12).and_then(|v| v.parse().ok()).unwrap_or(0.0);
+    ticks / 100.0
+}
+
+fn main() -> objnerf::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let dir = PathBuf::from(
+        args.get(1)
+            .map(String::as_str)
+            .unwrap_or("../shared/data/lego"),
+    );
+    let ds: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(4);
+    let secs: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(120.0);
+    let degree: u32 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let steps: usize = args.get(5).and_then(|s| s.parse().ok()).unwrap_or(100_000);
+    let t0 = std::time::Instant::now();
+    let train = objnerf::Scene::load(&dir.join("transforms_train.json"))?;
+    let test = objnerf::Scene::load(&dir.join("transforms_test.json"))?;
+    let views = field::rays::load_views(&train, &MaskSource::Alpha, ds)?;
+    let test_views = field::rays::load_views(&test, &MaskSource::Alpha, ds)?;
+    let load_s = t0.elapsed().as_secs_f64();
+    let mut setup = SetupConfig {
+        sh_degree: degree,
+        ..Default::default()
+    };
+    if let Some(v) = env("FIELD_VPP") {
+        setup.voxels_per_pixel = v;
+    }
+    if let Some(v) = env::<usize>("FIELD_MEM_MB") {
+        setup.memory_budget = v << 20;
+    }
+    let mut cfg = TrainConfig {
+        steps,
+        ..Default::default()
+    };
+    if let Ok(st) = std::env::var("FIELD_STAGES") {
+        cfg.stages = st
+            .split(',')
+            .filter_map(|p| p.split_once(':'))
+            .filter_map(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+            .collect();
+    }
+    if let Some(v) = env("FIELD_PRUNE") {
+        cfg.prune_every = v;
+    }
+    if let Some((a, b)) = pair("FIELD_TV") {
+        (cfg.tv_density, cfg.tv_color) = (a, b);
+    }
+    if let Some((a, b)) = pair("FIELD_LR") {
+        (cfg.lr_density, cfg.lr_color) = (a, b);
+    }
+    if let Some(v) = env("FIELD_STEP") {
+        cfg.render.step = v;
+    }
+    if let Some(v) = env("FIELD_BATCH") {
+        cfg.batch = v;
+    }
+    let cpu0 = cpu_seconds();
+    let t1 = std::time::Instant::now();
+    let (mut trainer, rays, report) = field::prepare(&views, &setup, cfg)?;
+    let prep_s = t1.elapsed().as_secs_f64();
+    eprintln!("{}", serde_json::to_string(&report).unwrap_or_default());
+    let stop = StopRule {
+        time_budget: Some(secs),
+        plateau_db: None,
+        window: 100,
+    };
+    let mut next_log = 0.0;
+    let summary = field::run(&mut trainer, &views, &rays, &stop, |s, t| {
+        if t >= next_log {
+            eprintln!(
+                "t={t:.1}s step={} loss={:.5} psnr={:.2} samples/ray={:.1}",
+                s.step, s.loss, s.psnr, s.samples_per_ray
+            );
+            next_log = t + 10.0;
+        }
+    });
+    let train_cpu = cpu_seconds() - cpu0;
+    // Evaluate with the default (finer) sampling whatever the training step was.
+    let ev = field::eval::evaluate(
+        &trainer.field,
+        &field::RenderOptions::default(),
+        &test_views,
+    );
+    let commit = std::process::Command::new("git")
+        .args(["rev-parse", "--short", "HEAD"])
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    let out = serde_json::json!({
+        "command": args.join(" "),
+        "git_commit": commit,
+        "threads": rayon::current_num_threads(),
+        "downscale": ds, "sh_degree": degree, "budget_s": secs,
+        "batch": trainer.cfg.batch, "step_voxels": trainer.cfg.render.step,
+        "load_s": load_s, "prepare_s": prep_s, "train": summary,
+        "train_cpu_s": train_cpu,
+        "setup": report, "vertices": trainer.field.grid.num_vertices(),
+        "dims": trainer.field.grid.dims,
+        "occupied_cells": trainer.field.occupied_cells(),
+        "phase_secs": trainer.phase_secs,
+        "memory_mb": trainer.memory_bytes() as f64 / 1048576.0,
+        "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
+    });
+    println!("{out}");
+    if let Some(i) = args.iter().position(|a| a == "--json") {
+        if let Some(p) = args.get(i + 1) {
+            objnerf::util::atomic::write_bytes_atomic(
+                std::path::Path::new(p),
+                serde_json::to_string_pretty(&out)
+                    .unwrap_or_default()
+                    .as_bytes(),
+            )?;
+        }
+    }
+    Ok(())
+}

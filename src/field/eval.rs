@@ -1,0 +1,196 @@
+//! Rendering whole views (RGB, depth, alpha; multi-threaded by rows) and scoring them: PSNR and
+//! SSIM against the truth composited on white (the NeRF-synthetic protocol).
+
+use super::model::Field;
+use super::rays::View;
+use super::render::{render_ray, RenderOptions};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// A rendered view: RGB in [0, 1] (composited on the background), alpha, and depth (expected
+/// distance along the ray over the opaque part: sum w t / sum w; 0 where alpha is ~0).
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<[f32; 3]>,
+    pub alpha: Vec<f32>,
+    pub depth: Vec<f32>,
+}
+
+pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) -> Rendered {
+    let (w, h) = (view.width, view.height);
+    let rows: Vec<Vec<(f32, f32, [f32; 3])>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut scratch = Vec::new();
+            (0..w)
+                .map(|x| {
+                    let (o, d) = view.ray(y * w + x);
+                    let r = render_ray(f, opt, o, d, bg, &mut scratch);
+                    let depth = if r.alpha > 1e-3 {
+                        r.depth / r.alpha
+                    } else {
+                        0.0
+                    };
+                    (r.alpha, depth, r.rgb)
+                })
+                .collect()
+        })
+        .collect();
+    let mut out = Rendered {
+        width: w,
+        height: h,
+        rgb: Vec::with_capacity((w * h) as usize),
+        alpha: Vec::with_capacity((w * h) as usize),
+        depth: Vec::with_capacity((w * h) as usize),
+    };
+    for (a, d, c) in rows.into_iter().flatten() {
+        out.alpha.push(a);
+        out.depth.push(d);
+        out.rgb.push(c);
+    }
+    out
+}
+
+/// A view's truth composited on a background.
+pub fn truth_on(view: &View, bg: [f32; 3]) -> Vec<[f32; 3]> {
+    view.rgba
+        .iter()
+        .map(|p| {
+            let a = p[3] as f32 / 255.0;
+            [0, 1, 2].map(|c| p[c] as f32 / 255.0 + (1.0 - a) * bg[c])
+        })
+        .collect()
+}
+
+pub fn psnr(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let mse: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (0..3).map(|c| ((x[c] - y[c]) as f64).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / (3 * a.len().max(1)) as f64;
+    -10.0 * mse.max(1e-20).log10()
+}
+
+/// SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03, data range 1),
+/// averaged over the valid window positions and the three channels, as the NeRF papers compute it.
+pub fn ssim(a: &[[f32; 3]], b: &[[f32; 3]], w: usize, h: usize) -> f64 {
+    let k: Vec<f64> = {
+        let g: Vec<f64> = (0..11)
+            .map(|i| (-((i as f64 - 5.0).powi(2)) / (2.0 * 1.5 * 1.5)).exp())
+            .collect();
+        let s: f64 = g.iter().sum();
+        g.iter().map(|v| v / s).collect()
+    };
+    if w < 11 || h < 11 {
+        return f64::NAN;
+    }
+    let (ow, oh) = (w - 10, h - 10);
+    // Valid separable filtering.
+    let filt = |img: &[f64]| -> Vec<f64> {
+        let mut tmp = vec![0.0; ow * h];
+        for y in 0..h {
+            for x in 0..ow {
+                tmp[y * ow + x] = (0..11).map(|i| k[i] * img[y * w + x + i]).sum();
+            }
+        }
+        let mut out = vec![0.0; ow * oh];
+        for y in 0..oh {
+            for x in 0..ow {
+                out[y * ow + x] = (0..11).map(|i| k[i] * tmp[(y + i) * ow + x]).sum();
+            }
+        }
+        out
+    };
+    let (c1, c2) = (0.01f64.powi(2), 0.03f64.powi(2));
+    let total: f64 = (0..3)
+        .into_par_iter()
+        .map(|c| {
+            let x: Vec<f64> = a.iter().map(|p| p[c] as f64).collect();
+            let y: Vec<f64> = b.iter().map(|p| p[c] as f64).collect();
+            let xx: Vec<f64> = x.iter().map(|v| v * v).collect();
+            let yy: Vec<f64> = y.iter().map(|v| v * v).collect();
+            let xy: Vec<f64> = x.iter().zip(&y).map(|(p, q)| p * q).collect();
+            let (mx, my) = (filt(&x), filt(&y));
+            let (sxx, syy, sxy) = (filt(&xx), filt(&yy), filt(&xy));
+            let mut s = 0.0;
+            for i in 0..mx.len() {
+                let (ux, uy) = (mx[i], my[i]);
+                let vx = sxx[i] - ux * ux;
+                let vy = syy[i] - uy * uy;
+                let cxy = sxy[i] - ux * uy;
+                s += ((2.0 * ux * uy + c1) * (2.0 * cxy + c2))
+                    / ((ux * ux + uy * uy + c1) * (vx + vy + c2));
+            }
+            s / mx.len() as f64
+        })
+        .sum();
+    total / 3.0
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewScore {
+    pub name: String,
+    pub psnr: f64,
+    pub ssim: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalReport {
+    pub psnr: f64,
+    pub ssim: f64,
+    pub num_views: usize,
+    pub views: Vec<ViewScore>,
+    pub seconds: f64,
+}
+
+/// Render every view on white and score it against its truth on white.
+pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
+    let start = std::time::Instant::now();
+    let white = [1.0; 3];
+    let scores: Vec<ViewScore> = views
+        .iter()
+        .map(|v| {
+            let r = render_view(f, opt, v, white);
+            let t = truth_on(v, white);
+            ViewScore {
+                name: v.name.clone(),
+                psnr: psnr(&r.rgb, &t),
+                ssim: ssim(&r.rgb, &t, v.width as usize, v.height as usize),
+            }
+        })
+        .collect();
+    let n = scores.len().max(1) as f64;
+    EvalReport {
+        psnr: scores.iter().map(|s| s.psnr).sum::<f64>() / n,
+        ssim: scores.iter().map(|s| s.ssim).sum::<f64>() / n,
+        num_views: scores.len(),
+        views: scores,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn psnr_and_ssim_of_identical_and_noisy_images() {
+        let (w, h) = (32, 24);
+        let a: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                let v = ((i * 37) % 101) as f32 / 100.0;
+                [v, 1.0 - v, 0.5]
+            })
+            .collect();
+        assert!(psnr(&a, &a) > 100.0);
+        assert!((ssim(&a, &a, w, h) - 1.0).abs() < 1e-9);
+        let b: Vec<[f32; 3]> = a.iter().map(|p| p.map(|v| (v + 0.1).min(1.0))).collect();
+        let p = psnr(&a, &b);
+        assert!(p > 19.0 && p < 21.0, "{p}");
+        let s = ssim(&a, &b, w, h);
+        assert!(s < 1.0 && s > 0.5, "{s}");
+    }
+}

@@ -1,0 +1,185 @@
+//! Putting training together: views + masks → box (visual hull) → grid size (pixel footprint,
+//! memory budget) → carved occupancy → rays pruned to the box → a [`Trainer`] run until the step
+//! count, a time budget or a PSNR plateau.
+
+use super::model::{Field, FieldConfig};
+use super::rays::{choose_voxel, hull_box, visual_hull, RaySet, View};
+use super::train::{stage_dims, StepStats, TrainConfig, Trainer};
+use crate::error::Result;
+use glam::Vec3;
+use serde::Serialize;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct SetupConfig {
+    pub sh_degree: u32,
+    /// Voxels per pixel footprint at the median viewing distance.
+    pub voxels_per_pixel: f32,
+    /// Bytes for the grid and its optimiser state.
+    pub memory_budget: usize,
+    /// Box padding, as a fraction of its size per side.
+    pub pad: f32,
+    pub alpha_init: f32,
+}
+
+impl Default for SetupConfig {
+    fn default() -> Self {
+        SetupConfig {
+            sh_degree: 1,
+            voxels_per_pixel: 1.0,
+            memory_budget: 1 << 30,
+            pad: 0.02,
+            alpha_init: 0.01,
+        }
+    }
+}
+
+/// What the setup chose, for the log and the benchmark JSON.
+#[derive(Clone, Debug, Serialize)]
+pub struct SetupReport {
+    pub box_min: [f32; 3],
+    pub box_max: [f32; 3],
+    pub voxel: f32,
+    pub final_dims: [usize; 3],
+    pub final_vertices: usize,
+    pub why: String,
+    pub rays_total: usize,
+    pub rays_kept: usize,
+    pub pruned_fraction: f64,
+    pub hull_cells: usize,
+    pub first_stage_cells: usize,
+}
+
+/// Build the trainer for `views`.
+pub fn prepare(
+    views: &[View],
+    setup: &SetupConfig,
+    cfg: TrainConfig,
+) -> Result<(Trainer, RaySet, SetupReport)> {
+    let (lo, hi) = hull_box(views, setup.pad)?;
+    let channels = 1 + 3 * super::model::sh_coeffs(setup.sh_degree);
+    // params, gradient, Adam m and v, plus the stamp
+    let bytes_per_vertex = channels * 16 + 4;
+    let (voxel, why) = choose_voxel(
+        views,
+        lo,
+        hi,
+        setup.voxels_per_pixel,
+        bytes_per_vertex,
+        setup.memory_budget,
+    );
+    // Final cells per axis rounded up to a multiple of 4 so coarse stages nest exactly.
+    let e = hi - lo;
+    let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
+    let hi = lo
+        + Vec3::new(
+            (final_dims[0] - 1) as f32,
+            (final_dims[1] - 1) as f32,
+            (final_dims[2] - 1) as f32,
+        ) * voxel;
+    let first_scale = cfg.stages.first().map(|s| s.1).unwrap_or(1.0);
+    let dims0 = stage_dims(final_dims, first_scale);
+    let mut field = Field::new(
+        FieldConfig {
+            sh_degree: setup.sh_degree,
+            alpha_init: setup.alpha_init,
+            base_voxel: voxel,
+        },
+        lo,
+        hi,
+        dims0,
+    );
+    let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
+    let keep = visual_hull(views, lo, field.box_max, cells);
+    for (c, &k) in keep.iter().enumerate() {
+        field.set_occupied(c, k);
+    }
+    field.rebuild_blocks();
+    let hull_cells = keep.iter().filter(|&&k| k).count();
+    let rays = RaySet::build(views, lo, field.box_max);
+    let report = SetupReport {
+        box_min: lo.to_array(),
+        box_max: field.box_max.to_array(),
+        voxel,
+        final_dims,
+        final_vertices: final_dims.iter().product(),
+        why,
+        rays_total: rays.total,
+        rays_kept: rays.rays.len(),
+        pruned_fraction: rays.pruned_fraction(),
+        hull_cells,
+        first_stage_cells: field.num_cells(),
+    };
+    Ok((Trainer::new(field, final_dims, cfg), rays, report))
+}
+
+/// When to stop.
+#[derive(Clone, Debug, Default)]
+pub struct StopRule {
+    /// Seconds of training.
+    pub time_budget: Option<f64>,
+    /// Stop when the batch PSNR (averaged over `window` steps) rose by less than this many dB
+    /// over the last window, once the grid is at its finest.
+    pub plateau_db: Option<f32>,
+    pub window: usize,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RunSummary {
+    pub steps: usize,
+    pub seconds: f64,
+    pub rays_per_second: f64,
+    pub final_psnr: f32,
+    pub stopped_by: String,
+}
+
+/// Train until `trainer.cfg.steps`, the time budget or a plateau; `progress` sees every step.
+pub fn run(
+    trainer: &mut Trainer,
+    views: &[View],
+    rays: &RaySet,
+    stop: &StopRule,
+    mut progress: impl FnMut(&StepStats, f64),
+) -> RunSummary {
+    let start = Instant::now();
+    let first_step = trainer.step;
+    let mut stopped_by = "steps".to_string();
+    let mut window_sum = 0.0f64;
+    let mut last_window: Option<f64> = None;
+    let mut last = StepStats::default();
+    let w = stop.window.max(1);
+    while trainer.step < trainer.cfg.steps {
+        if let Some(b) = stop.time_budget {
+            trainer.time_frac = (start.elapsed().as_secs_f64() / b.max(1e-9)) as f32;
+        }
+        last = trainer.train_step(views, rays);
+        let secs = start.elapsed().as_secs_f64();
+        progress(&last, secs);
+        window_sum += last.psnr as f64;
+        if trainer.step % w == 0 {
+            let mean = window_sum / w as f64;
+            window_sum = 0.0;
+            let at_finest = trainer.field.grid.dims == trainer.final_dims;
+            if let (Some(db), Some(prev)) = (stop.plateau_db, last_window) {
+                if at_finest && mean - prev < db as f64 {
+                    stopped_by = "plateau".into();
+                    break;
+                }
+            }
+            last_window = at_finest.then_some(mean);
+        }
+        if stop.time_budget.is_some_and(|b| secs >= b) {
+            stopped_by = "time budget".into();
+            break;
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    RunSummary {
+        steps: trainer.step,
+        seconds,
+        rays_per_second: ((trainer.step - first_step) * trainer.cfg.batch) as f64
+            / seconds.max(1e-9),
+        final_psnr: last.psnr,
+        stopped_by,
+    }
+}

@@ -1,0 +1,537 @@
+//! Training: random ray batches, colour + alpha loss on a random background, hand-written
+//! backward, and a sparse per-voxel Adam step with total variation on the touched voxels.
+//!
+//! Determinism: a batch is cut into fixed chunks of rays whose randomness comes from the seed, the
+//! step and the ray's position in the batch (not from the thread that runs it). Each chunk writes
+//! its per-sample gradients as records; the grid is then split into z-slabs, one per task, and
+//! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
+//! the same order whatever the thread count, and two runs with one seed give identical grids.
+
+use super::grid::Grid;
+use super::model::Field;
+use super::rays::{RaySet, View};
+use super::render::{backward, forward, RenderOptions, Sample};
+use crate::util::Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TrainConfig {
+    pub seed: u64,
+    /// Rays per step.
+    pub batch: usize,
+    /// Most steps; the learning rates decay over this many.
+    pub steps: usize,
+    pub lr_density: f32,
+    pub lr_color: f32,
+    /// Learning rates fall to this fraction at `steps` (exponentially).
+    pub lr_final: f32,
+    pub beta1: f32,
+    pub beta2: f32,
+    /// Total-variation weights (density, colour), applied to the voxels a batch touches.
+    pub tv_density: f32,
+    pub tv_color: f32,
+    /// Weight of the squared alpha error (the colour loss on a random background already
+    /// supervises alpha; this sharpens the silhouette).
+    pub alpha_weight: f32,
+    /// Weight of the squared error of the expected ray depth against depth targets (lambda_d),
+    /// and how many rays with a depth target are added to each batch.
+    pub depth_weight: f32,
+    pub depth_batch: usize,
+    /// Coarse-to-fine: (fraction of `steps`, grid scale per axis), scales rising to 1.
+    pub stages: Vec<(f32, f32)>,
+    /// Re-derive the occupancy grid every this many steps.
+    pub prune_every: usize,
+    pub render: RenderOptions,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            seed: 0,
+            batch: 2048,
+            steps: 20_000,
+            lr_density: 0.1,
+            lr_color: 0.05,
+            lr_final: 0.1,
+            beta1: 0.9,
+            beta2: 0.99,
+            tv_density: 0.0,
+            tv_color: 0.0,
+            alpha_weight: 0.1,
+            depth_weight: 0.1,
+            depth_batch: 1024,
+            stages: vec![(0.0, 0.5), (0.3, 1.0)],
+            prune_every: 100,
+            // Training samples every voxel; rendering and evaluation every half voxel. Measured
+            // on lego 200^2 in 90 s: step 1.0 with 2048-ray batches gave 31.2 dB against 28.3 dB
+            // at step 0.5 (same batch), since each step costs about half as much.
+            render: RenderOptions {
+                step: 1.0,
+                ..RenderOptions::default()
+            },
+        }
+    }
+}
+
+/// What one step reports.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct StepStats {
+    pub step: usize,
+    pub loss: f32,
+    /// PSNR of the batch's colours (on their random backgrounds).
+    pub psnr: f32,
+    pub samples_per_ray: f32,
+}
+
+const CHUNK: usize = 256;
+
+/// One Adam step's constants (bias corrections and the decayed learning rates).
+#[derive(Clone, Copy)]
+struct AdamStep {
+    b1: f32,
+    b2: f32,
+    c1: f32,
+    c2: f32,
+    lr: [f32; 2],
+}
+
+impl AdamStep {
+    /// Update the listed vertices of one slab (slices start at vertex `v0`) and clear their
+    /// gradients.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn apply(
+        &self,
+        p: &mut [f32],
+        g: &mut [f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        list: &[u32],
+        v0: usize,
+        ch: usize,
+    ) {
+        let (b1, b2, c1, c2) = (self.b1, self.b2, self.c1, self.c2);
+        for &vtx in list {
+            let o = (vtx as usize - v0) * ch;
+            for j in o..o + ch {
+                let gj = g[j];
+                g[j] = 0.0;
+                m[j] = b1 * m[j] + (1.0 - b1) * gj;
+                v[j] = b2 * v[j] + (1.0 - b2) * gj * gj;
+                let l = if j == o { self.lr[0] } else { self.lr[1] };
+                p[j] -= l * (m[j] / c1) / (v[j].sqrt() / c2 + 1e-8);
+            }
+        }
+    }
+}
+
+/// Optimiser state and the buffers of one training run.
+pub struct Trainer {
+    pub field: Field,
+    pub cfg: TrainConfig,
+    /// Dims of the finest stage.
+    pub final_dims: [usize; 3],
+    pub step: usize,
+    grad: Vec<f32>,
+    m: Vec<f32>,
+    v: Vec<f32>,
+    /// Step (+1) at which a vertex was last touched, to list touched vertices without clearing.
+    stamp: Vec<u32>,
+    adam_t: u32,
+    /// Per chunk, per z-slab: the gradient records of samples whose cell touches that slab.
+    records: Vec<Vec<Vec<f32>>>,
+    /// Fraction of a time budget used so far: the schedule follows whichever of step and time
+    /// progress is further along, so a short budget still reaches the finest grid. Left at 0
+    /// (no budget), training depends on the seed alone.
+    pub time_frac: f32,
+    /// Seconds spent in (forward + backward, gradient scatter, TV + Adam, occupancy pruning).
+    pub phase_secs: [f64; 4],
+}
+
+/// Stage dims: (final - 1) * scale + 1 per axis (final - 1 is a multiple of 4, so 1/2 and 1/4
+/// scales are exact and voxels stay cubic).
+pub fn stage_dims(final_dims: [usize; 3], scale: f32) -> [usize; 3] {
+    final_dims.map(|d| (((d - 1) as f32 * scale).round() as usize).max(1) + 1)
+}
+
+impl Trainer {
+    /// Start from `field` (already at the first stage's dims, occupancy carved) aiming at
+    /// `final_dims`.
+    pub fn new(field: Field, final_dims: [usize; 3], cfg: TrainConfig) -> Trainer {
+        let mut t = Trainer {
+            field,
+            cfg,
+            final_dims,
+            step: 0,
+            grad: Vec::new(),
+            m: Vec::new(),
+            v: Vec::new(),
+            stamp: Vec::new(),
+            adam_t: 0,
+            records: Vec::new(),
+            time_frac: 0.0,
+            phase_secs: [0.0; 4],
+        };
+        t.reset_state();
+        t
+    }
+
+    fn reset_state(&mut self) {
+        let n = self.field.grid.data.len();
+        self.grad = vec![0.0; n];
+        self.m = vec![0.0; n];
+        self.v = vec![0.0; n];
+        self.stamp = vec![0; self.field.grid.num_vertices()];
+        self.adam_t = 0;
+    }
+
+    /// Continue from a saved model: its grid, step and (if saved) optimiser state. The saved
+    /// training settings win over `cfg` except for the step count, so a resumed run follows the
+    /// same schedule.
+    pub fn from_model(m: super::io::Model, cfg: TrainConfig) -> Trainer {
+        let mut c = m.train.clone().unwrap_or(cfg.clone());
+        c.steps = c.steps.max(cfg.steps);
+        let mut t = Trainer::new(m.field, m.final_dims, c);
+        t.step = m.step;
+        if let Some((am, av, at)) = m.adam {
+            t.set_adam_state(am, av, at);
+        }
+        t
+    }
+
+    /// A model file's content for this trainer (with optimiser state, so it can resume).
+    pub fn to_model(&self, world: [[f64; 4]; 4], notes: serde_json::Value) -> super::io::Model {
+        super::io::Model {
+            field: self.field.clone(),
+            final_dims: self.final_dims,
+            world_transform: world,
+            train: Some(self.cfg.clone()),
+            step: self.step,
+            adam: Some((self.m.clone(), self.v.clone(), self.adam_t)),
+            notes,
+        }
+    }
+
+    /// Optimiser state (m, v, step count) for saving a resumable model.
+    pub fn adam_state(&self) -> (&[f32], &[f32], u32) {
+        (&self.m, &self.v, self.adam_t)
+    }
+
+    /// Restore optimiser state saved with [`Trainer::adam_state`].
+    pub fn set_adam_state(&mut self, m: Vec<f32>, v: Vec<f32>, t: u32) {
+        if m.len() == self.grad.len() && v.len() == self.grad.len() {
+            self.m = m;
+            self.v = v;
+            self.adam_t = t;
+        }
+    }
+
+    /// Bytes of parameters and optimiser state.
+    pub fn memory_bytes(&self) -> usize {
+        self.field.param_bytes()
+            + (self.grad.len() + self.m.len() + self.v.len()) * 4
+            + self.stamp.len() * 4
+    }
+
+    /// The grid scale the schedule wants at `step`.
+    /// Progress through the schedule in [0, 1].
+    pub fn progress(&self) -> f32 {
+        (self.step as f32 / self.cfg.steps.max(1) as f32)
+            .max(self.time_frac)
+            .min(1.0)
+    }
+
+    fn scale_at(&self) -> f32 {
+        let frac = self.progress();
+        let mut s = 1.0;
+        for &(at, scale) in &self.cfg.stages {
+            if frac >= at {
+                s = scale;
+            }
+        }
+        s
+    }
+
+    /// Grow the grid when the schedule says so; true if it grew.
+    pub fn maybe_grow(&mut self) -> bool {
+        let want = stage_dims(self.final_dims, self.scale_at());
+        if want[0] > self.field.grid.dims[0] {
+            self.field.upsample(want);
+            self.reset_state();
+            self.prune();
+            return true;
+        }
+        false
+    }
+
+    fn prune(&mut self) {
+        let delta = self.cfg.render.step * self.field.voxel / self.field.config.base_voxel;
+        self.field
+            .prune_occupancy(delta, self.cfg.render.alpha_thresh);
+    }
+
+    /// One optimisation step on `batch` rays drawn from `rays`.
+    pub fn train_step(&mut self, views: &[View], rays: &RaySet) -> StepStats {
+        self.maybe_grow();
+        let cfg = self.cfg.clone();
+        let step = self.step;
+        let clock = std::time::Instant::now();
+        let mut rng = Rng::fork(cfg.seed, step as u64);
+        let mut picks: Vec<(u32, u32)> = (0..cfg.batch)
+            .map(|_| rays.rays[rng.below(rays.rays.len())])
+            .collect();
+        if cfg.depth_weight > 0.0 && !rays.depth_rays.is_empty() {
+            for _ in 0..cfg.depth_batch {
+                picks.push(rays.depth_rays[rng.below(rays.depth_rays.len())]);
+            }
+        }
+        // Rays of one view and nearby pixels cross the same voxels: ordering the batch keeps a
+        // chunk's grid reads in cache. The sum over the batch does not depend on the order.
+        picks.sort_unstable();
+        let nchunks = picks.len().div_ceil(CHUNK);
+        self.records.resize_with(nchunks, Vec::new);
+        let (nslabs, zper) = self.slabs();
+        let field = &self.field;
+        let plane = field.grid.dims[0] * field.grid.dims[1];
+        let ch = field.grid.channels;
+        let stride = ch + 4;
+        let inv_b = 1.0 / picks.len() as f32;
+        let stats: Vec<(f64, f64, usize)> = self
+            .records
+            .par_iter_mut()
+            .zip(picks.par_chunks(CHUNK))
+            .enumerate()
+            .map(|(ci, (rec, chunk))| {
+                rec.resize_with(nslabs, Vec::new);
+                rec.iter_mut().for_each(|r| r.clear());
+                let mut samples: Vec<Sample> = Vec::with_capacity(512);
+                let (mut loss, mut mse, mut nsamp) = (0f64, 0f64, 0usize);
+                for (ri, &(vi, px)) in chunk.iter().enumerate() {
+                    let mut r = Rng::fork(
+                        cfg.seed ^ 0x5eed,
+                        ((step as u64) << 24) | (ci * CHUNK + ri) as u64,
+                    );
+                    let view = &views[vi as usize];
+                    let (o, d) = view.ray(px);
+                    let bg = [r.f32(), r.f32(), r.f32()];
+                    let p = view.rgba[px as usize];
+                    let a = p[3] as f32 / 255.0;
+                    let tgt = [0, 1, 2].map(|c| p[c] as f32 / 255.0 + (1.0 - a) * bg[c]);
+                    let out = forward(field, &cfg.render, o, d, r.f32(), bg, &mut samples);
+                    nsamp += samples.len();
+                    let mut g = [0f32; 3];
+                    let mut e2 = 0f32;
+                    for c in 0..3 {
+                        let e = out.rgb[c] - tgt[c];
+                        e2 += e * e;
+                        g[c] = 2.0 * e * inv_b / 3.0;
+                    }
+                    let ea = out.alpha - a;
+                    let ga = 2.0 * cfg.alpha_weight * ea * inv_b;
+                    mse += e2 as f64 / 3.0;
+                    loss += (e2 / 3.0 + cfg.alpha_weight * ea * ea) as f64;
+                    let mut gd = 0.0;
+                    if let Some(dt) = view.depth.as_ref().map(|d| d[px as usize]) {
+                        if dt > 0.0 && cfg.depth_weight > 0.0 {
+                            let ed = out.depth - dt;
+                            gd = 2.0 * cfg.depth_weight * ed * inv_b;
+                            loss += (cfg.depth_weight * ed * ed) as f64;
+                        }
+                    }
+                    if samples.is_empty() {
+                        continue;
+                    }
+                    backward(field, &cfg.render, d, bg, &samples, g, ga, gd, |s, gr| {
+                        let z = s.base as usize / plane;
+                        let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
+                        for b in &mut rec[sa..=sb] {
+                            b.push(f32::from_bits(s.base));
+                            b.extend_from_slice(&s.frac);
+                            b.extend_from_slice(gr);
+                        }
+                    });
+                }
+                (loss, mse, nsamp)
+            })
+            .collect();
+        let (loss, mse, nsamp) = stats
+            .iter()
+            .fold((0.0, 0.0, 0), |a, s| (a.0 + s.0, a.1 + s.1, a.2 + s.2));
+        self.phase_secs[0] += clock.elapsed().as_secs_f64();
+        self.apply_gradients(stride);
+        self.step += 1;
+        if cfg.prune_every > 0 && self.step % cfg.prune_every == 0 {
+            let c = std::time::Instant::now();
+            self.prune();
+            self.phase_secs[3] += c.elapsed().as_secs_f64();
+        }
+        let n = picks.len() as f64;
+        StepStats {
+            step: self.step,
+            loss: (loss / n) as f32,
+            psnr: (-10.0 * (mse / n).max(1e-12).log10()) as f32,
+            samples_per_ray: nsamp as f32 / n as f32,
+        }
+    }
+
+    /// How the grid's z-layers are split for the scatter: (slab count, layers per slab). Depends
+    /// on the thread count, which does not change the sums (see the module notes).
+    fn slabs(&self) -> (usize, usize) {
+        let nz = self.field.grid.dims[2];
+        let want = (rayon::current_num_threads() * 2).clamp(1, nz);
+        let zper = nz.div_ceil(want);
+        (nz.div_ceil(zper), zper)
+    }
+
+    /// Scatter the records into the gradient by z-slabs, add TV, and take an Adam step on the
+    /// touched vertices only.
+    fn apply_gradients(&mut self, stride: usize) {
+        let dims = self.field.grid.dims;
+        let ch = self.field.grid.channels;
+        let plane = dims[0] * dims[1];
+        let (_, zper) = self.slabs();
+        let stamp_id = self.step as u32 + 1;
+        let clock = std::time::Instant::now();
+        // Without TV, each slab runs Adam on its vertices right after summing their gradients,
+        // while those lines are still in cache (TV reads neighbours across slabs, so it needs
+        // every slab's scatter finished first).
+        let fused = self.cfg.tv_density == 0.0 && self.cfg.tv_color == 0.0;
+        let adam = fused.then(|| self.adam_step());
+        let records = &self.records;
+        let (sx, sy, sz) = (1usize, dims[0], plane);
+        let offs = [0, sx, sy, sx + sy, sz, sx + sz, sy + sz, sx + sy + sz];
+        let span = zper * plane * ch;
+        let touched: Vec<Vec<u32>> = self
+            .grad
+            .par_chunks_mut(span)
+            .zip(self.stamp.par_chunks_mut(zper * plane))
+            .zip(self.field.grid.data.par_chunks_mut(span))
+            .zip(self.m.par_chunks_mut(span))
+            .zip(self.v.par_chunks_mut(span))
+            .enumerate()
+            .map(|(si, ((((gslab, stslab), pslab), mslab), vslab))| {
+                let z0 = si * zper;
+                let v0 = z0 * plane;
+                let v1 = v0 + stslab.len();
+                let mut list = Vec::new();
+                for rec in records {
+                    for r in rec[si].chunks_exact(stride) {
+                        let base = r[0].to_bits() as usize;
+                        let bz = base / plane;
+                        if bz + 1 < z0 || bz >= z0 + stslab.len() / plane {
+                            continue;
+                        }
+                        let k = Grid::corners_in(
+                            dims,
+                            [base % dims[0], (base / dims[0]) % dims[1], bz],
+                            [r[1], r[2], r[3]],
+                        );
+                        let g = &r[4..];
+                        for (c, &off) in offs.iter().enumerate() {
+                            let vtx = base + off;
+                            if vtx < v0 || vtx >= v1 {
+                                continue;
+                            }
+                            let local = vtx - v0;
+                            if stslab[local] != stamp_id {
+                                stslab[local] = stamp_id;
+                                list.push(vtx as u32);
+                            }
+                            let w = k.w[c];
+                            let dst = &mut gslab[local * ch..(local + 1) * ch];
+                            for (d, s) in dst.iter_mut().zip(g) {
+                                *d += w * s;
+                            }
+                        }
+                    }
+                }
+                // Ascending order turns the optimiser's pass into a forward sweep of memory
+                // (first-touch order is random and was cache-miss bound).
+                list.sort_unstable();
+                if let Some(a) = &adam {
+                    a.apply(pslab, gslab, mslab, vslab, &list, v0, ch);
+                }
+                list
+            })
+            .collect();
+        self.phase_secs[1] += clock.elapsed().as_secs_f64();
+        if !fused {
+            let clock = std::time::Instant::now();
+            self.tv_and_adam(&touched, zper * plane);
+            self.phase_secs[2] += clock.elapsed().as_secs_f64();
+        }
+    }
+
+    fn tv_and_adam(&mut self, touched: &[Vec<u32>], slab_vertices: usize) {
+        let cfg = &self.cfg;
+        let dims = self.field.grid.dims;
+        let ch = self.field.grid.channels;
+        let params = &self.field.grid.data;
+        if cfg.tv_density > 0.0 || cfg.tv_color > 0.0 {
+            let strides = [1usize, dims[0], dims[0] * dims[1]];
+            let nv = self.field.grid.num_vertices();
+            // Reads parameters only, writes each slab's own gradients: order-independent.
+            self.grad
+                .par_chunks_mut(slab_vertices * ch)
+                .zip(touched.par_iter())
+                .enumerate()
+                .for_each(|(si, (gslab, list))| {
+                    let v0 = si * slab_vertices;
+                    for &v in list {
+                        let v = v as usize;
+                        let coords = [
+                            v % dims[0],
+                            (v / dims[0]) % dims[1],
+                            v / (dims[0] * dims[1]),
+                        ];
+                        for a in 0..3 {
+                            for dir in [-1isize, 1] {
+                                let c = coords[a] as isize + dir;
+                                if c < 0 || c as usize >= dims[a] {
+                                    continue;
+                                }
+                                let n = (v as isize + dir * strides[a] as isize) as usize;
+                                debug_assert!(n < nv);
+                                let g = &mut gslab[(v - v0) * ch..(v - v0 + 1) * ch];
+                                for (j, gj) in g.iter_mut().enumerate() {
+                                    let w = if j == 0 { cfg.tv_density } else { cfg.tv_color };
+                                    *gj += w * 2.0 * (params[v * ch + j] - params[n * ch + j]);
+                                }
+                            }
+                        }
+                    }
+                });
+        }
+        let step = self.adam_step();
+        let span = slab_vertices * ch;
+        self.field
+            .grid
+            .data
+            .par_chunks_mut(span)
+            .zip(self.grad.par_chunks_mut(span))
+            .zip(self.m.par_chunks_mut(span))
+            .zip(self.v.par_chunks_mut(span))
+            .zip(touched.par_iter())
+            .enumerate()
+            .for_each(|(si, ((((p, g), m), v), list))| {
+                step.apply(p, g, m, v, list, si * slab_vertices, ch);
+            });
+    }
+
+    /// Advance the Adam step count and return this step's constants.
+    fn adam_step(&mut self) -> AdamStep {
+        self.adam_t += 1;
+        let t = self.adam_t as i32;
+        let cfg = &self.cfg;
+        let decay = cfg.lr_final.powf(self.progress());
+        AdamStep {
+            b1: cfg.beta1,
+            b2: cfg.beta2,
+            c1: 1.0 - cfg.beta1.powi(t),
+            c2: (1.0 - cfg.beta2.powi(t)).sqrt(),
+            lr: [cfg.lr_density * decay, cfg.lr_color * decay],
+        }
+    }
+}

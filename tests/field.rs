@@ -1,0 +1,392 @@
+//! The object field on lego (small): repeatable training, exact resume, model-file errors, and a
+//! short training run that reaches a modest PSNR on held-out views.
+
+mod common;
+
+use objnerf::field::{self, io, MaskSource, SetupConfig, TrainConfig, View};
+use std::path::Path;
+
+fn lego_views(split: &str, downscale: u32, every: usize) -> Option<Vec<View>> {
+    let dir = common::shared_data("lego")?;
+    let mut scene = objnerf::Scene::load(&dir.join(format!("transforms_{split}.json"))).unwrap();
+    scene.images = scene.images.into_iter().step_by(every).collect();
+    Some(field::rays::load_views(&scene, &MaskSource::Alpha, downscale).unwrap())
+}
+
+fn small_cfg(steps: usize) -> TrainConfig {
+    TrainConfig {
+        seed: 7,
+        batch: 2048,
+        steps,
+        stages: vec![(0.0, 0.5), (0.5, 1.0)],
+        prune_every: 10,
+        // A little TV so the repeatability test covers it (1e-4 already over-smooths).
+        tv_density: 1e-7,
+        tv_color: 1e-8,
+        ..Default::default()
+    }
+}
+
+fn train_steps(views: &[View], cfg: TrainConfig, steps: usize) -> field::Trainer {
+    let (mut t, rays, _) = field::prepare(views, &SetupConfig::default(), cfg).unwrap();
+    for _ in 0..steps {
+        t.train_step(views, &rays);
+    }
+    t
+}
+
+#[test]
+fn training_is_repeatable_for_a_seed() {
+    let Some(views) = lego_views("train", 16, 10) else {
+        return;
+    };
+    let a = train_steps(&views, small_cfg(24), 24);
+    let b = train_steps(&views, small_cfg(24), 24);
+    // 24 steps with the switch to the fine grid at step 12 and pruning every 10.
+    assert_eq!(a.field.grid.dims, a.final_dims);
+    assert!(a.field.grid.data == b.field.grid.data, "grids differ");
+    assert_eq!(a.field.occupancy, b.field.occupancy);
+    let mut c_cfg = small_cfg(24);
+    c_cfg.seed = 8;
+    let c = train_steps(&views, c_cfg, 24);
+    assert!(
+        a.field.grid.data != c.field.grid.data,
+        "another seed gave the same grid"
+    );
+}
+
+/// The scatter splits the grid by thread count, but each vertex sums its records in the same
+/// order: one thread and three threads give the same grid.
+#[test]
+fn training_does_not_depend_on_the_thread_count() {
+    let Some(views) = lego_views("train", 16, 10) else {
+        return;
+    };
+    let with = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
+            .install(|| train_steps(&views, small_cfg(16), 16))
+    };
+    let a = with(1);
+    let b = with(3);
+    assert!(a.field.grid.data == b.field.grid.data, "grids differ");
+}
+
+#[test]
+fn resuming_from_a_saved_model_continues_exactly() {
+    let Some(views) = lego_views("train", 16, 10) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.objf");
+    let whole = train_steps(&views, small_cfg(20), 20);
+    let half = train_steps(&views, small_cfg(20), 10);
+    io::save(&path, &half.to_model(io::IDENTITY, serde_json::Value::Null)).unwrap();
+    let m = io::load(&path).unwrap();
+    assert_eq!(m.field.grid.data, half.field.grid.data);
+    let mut resumed = field::Trainer::from_model(m, small_cfg(20));
+    let rays = field::rays::RaySet::build(&views, resumed.field.box_min, resumed.field.box_max);
+    for _ in 0..10 {
+        resumed.train_step(&views, &rays);
+    }
+    assert!(
+        resumed.field.grid.data == whole.field.grid.data,
+        "resumed run diverged"
+    );
+}
+
+fn small_model_file(dir: &Path) -> std::path::PathBuf {
+    let f = field::Field::new(
+        field::FieldConfig {
+            sh_degree: 1,
+            alpha_init: 0.01,
+            base_voxel: 0.1,
+        },
+        glam::Vec3::ZERO,
+        glam::Vec3::ONE,
+        [5, 6, 7],
+    );
+    let t = field::Trainer::new(f, [5, 6, 7], TrainConfig::default());
+    let p = dir.join("small.objf");
+    io::save(
+        &p,
+        &t.to_model(io::IDENTITY, serde_json::json!({"downscale": 2})),
+    )
+    .unwrap();
+    p
+}
+
+#[test]
+fn truncated_or_corrupt_model_files_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = small_model_file(dir.path());
+    let bytes = std::fs::read(&p).unwrap();
+    let m = io::load(&p).unwrap();
+    assert_eq!(m.field.grid.dims, [5, 6, 7]);
+    assert_eq!(field::commands::model_downscale(&m), 2);
+
+    let cut = dir.path().join("cut.objf");
+    std::fs::write(&cut, &bytes[..bytes.len() - 100]).unwrap();
+    let e = io::load(&cut).unwrap_err().to_string();
+    assert!(e.contains("truncated") && e.contains("cut.objf"), "{e}");
+
+    let cut_header = dir.path().join("cut_header.objf");
+    std::fs::write(&cut_header, &bytes[..40]).unwrap();
+    let e = io::load(&cut_header).unwrap_err().to_string();
+    assert!(e.contains("truncated"), "{e}");
+
+    let mut flipped = bytes.clone();
+    let n = flipped.len();
+    flipped[n - 10] ^= 0x40;
+    let bad = dir.path().join("bad.objf");
+    std::fs::write(&bad, &flipped).unwrap();
+    let e = io::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("corrupt") && e.contains("SHA-256"), "{e}");
+
+    let mut extra = bytes.clone();
+    extra.extend_from_slice(b"junk");
+    let ex = dir.path().join("extra.objf");
+    std::fs::write(&ex, &extra).unwrap();
+    assert!(io::load(&ex)
+        .unwrap_err()
+        .to_string()
+        .contains("unexpected bytes"));
+
+    let png = dir.path().join("not.objf");
+    std::fs::write(&png, b"\x89PNG\r\n\x1a\n0000000000").unwrap();
+    assert!(io::load(&png)
+        .unwrap_err()
+        .to_string()
+        .contains("bad magic"));
+}
+
+/// A short run at 50x50 from 50 views reaches a modest PSNR on 5 held-out views (the 28 dB claim
+/// at 200x200 is the release benchmark, `examples/field_bench.rs`).
+#[test]
+fn short_lego_training_reaches_a_modest_psnr() {
+    let (Some(views), Some(test)) = (lego_views("train", 16, 2), lego_views("test", 16, 5)) else {
+        return;
+    };
+    let cfg = TrainConfig {
+        steps: 150,
+        batch: 2048,
+        ..small_cfg(150)
+    };
+    let start = std::time::Instant::now();
+    let t = train_steps(&views, cfg, 150);
+    let ev = field::eval::evaluate(&t.field, &t.cfg.render, &test);
+    eprintln!(
+        "50x50 lego: {} steps in {:.1} s, test PSNR {:.2} dB, SSIM {:.3} over {} views",
+        t.step,
+        start.elapsed().as_secs_f64(),
+        ev.psnr,
+        ev.ssim,
+        ev.num_views
+    );
+    assert_eq!(ev.num_views, 5);
+    assert!(ev.psnr > 20.0, "PSNR {}", ev.psnr);
+}
+
+#[test]
+fn cli_rejects_bad_inputs_cleanly() {
+    let out = std::process::Command::new(common::objnerf_bin())
+        .args([
+            "eval",
+            "/nonexistent.objf",
+            "--scene",
+            "/nonexistent",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("error:") && err.contains("nonexistent"),
+        "{err}"
+    );
+}
+
+/// Views of an analytic textured sphere (radius 0.5 at the origin) with exact masks and depth.
+fn sphere_views(n: usize, size: u32, elev: f64, phase: f64) -> Vec<View> {
+    use glam::DVec3;
+    (0..n)
+        .map(|i| {
+            let a = phase + i as f64 * std::f64::consts::TAU / n as f64;
+            let eye = DVec3::new(2.2 * a.cos(), 2.2 * a.sin(), elev);
+            let pose = objnerf::scene::Pose::look_at(eye, DVec3::ZERO, DVec3::Z);
+            let f = size as f64 * 1.1;
+            let cam = objnerf::scene::Camera::pinhole(
+                size,
+                size,
+                f,
+                f,
+                size as f64 / 2.0,
+                size as f64 / 2.0,
+            );
+            let mut v = View::new(
+                format!("v{i}"),
+                cam,
+                pose,
+                vec![[0; 4]; (size * size) as usize],
+            );
+            let mut depth = vec![0f32; (size * size) as usize];
+            for idx in 0..size * size {
+                let (o, d) = v.ray(idx);
+                let b = o.dot(d);
+                let c = o.length_squared() - 0.25;
+                let disc = b * b - c;
+                if disc > 0.0 {
+                    let t = -b - disc.sqrt();
+                    let p = o + d * t;
+                    let col = [
+                        0.5 + 0.4 * (7.0 * p.x).sin(),
+                        0.5 + 0.4 * (7.0 * p.y + 1.0).sin(),
+                        0.5 + 0.4 * (7.0 * p.z + 2.0).sin(),
+                    ];
+                    let px = &mut v.rgba[idx as usize];
+                    for k in 0..3 {
+                        px[k] = (col[k] * 255.0).round() as u8;
+                    }
+                    px[3] = 255;
+                    depth[idx as usize] = t;
+                }
+            }
+            v.depth = Some(depth);
+            v
+        })
+        .collect()
+}
+
+fn median_depth_error(t: &field::Trainer, views: &[View]) -> f64 {
+    let mut errs = Vec::new();
+    for v in views {
+        let r = field::eval::render_view(&t.field, &t.cfg.render, v, [1.0; 3]);
+        let truth = v.depth.as_ref().unwrap();
+        for (i, &d) in truth.iter().enumerate() {
+            if d > 0.0 {
+                errs.push((r.depth[i] - d).abs() as f64);
+            }
+        }
+    }
+    errs.sort_by(|a, b| a.total_cmp(b));
+    errs[errs.len() / 2]
+}
+
+/// Dense depth targets pin the geometry that few views leave ambiguous: the median depth error on
+/// held-out views drops.
+#[test]
+fn dense_depth_supervision_reduces_depth_error() {
+    let train = sphere_views(4, 40, 0.6, 0.0);
+    let held_out = sphere_views(3, 40, 1.2, 0.5);
+    let run = |depth_weight: f32| {
+        let mut views = train.clone();
+        if depth_weight == 0.0 {
+            views.iter_mut().for_each(|v| v.depth = None);
+        }
+        let cfg = TrainConfig {
+            depth_weight,
+            depth_batch: 512,
+            ..small_cfg(120)
+        };
+        let t = train_steps(&views, cfg, 120);
+        median_depth_error(&t, &held_out)
+    };
+    let without = run(0.0);
+    let with = run(0.5);
+    eprintln!("sphere, 4 views: median depth error {without:.4} without depth, {with:.4} with dense depth (radius 0.5)");
+    assert!(with < 0.8 * without, "with {with} vs without {without}");
+}
+
+/// train -> eval --json -> render through the binary, on lego at 50x50 for a few seconds.
+#[test]
+fn cli_train_eval_render() {
+    let Some(lego) = common::shared_data("lego") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("lego.objf");
+    let bin = common::objnerf_bin();
+    let train = lego.join("transforms_train.json");
+    let test = lego.join("transforms_test.json");
+    let out = std::process::Command::new(&bin)
+        .args([
+            "train",
+            train.to_str().unwrap(),
+            "--masks",
+            "alpha",
+            "--out",
+        ])
+        .arg(&model)
+        .args(["--downscale", "16", "--time-budget", "6", "--seed", "3"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("pruned") && err.contains("vertices"), "{err}");
+    let out = std::process::Command::new(&bin)
+        .arg("eval")
+        .arg(&model)
+        .args(["--scene", test.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["num_views"], 25);
+    let psnr = v["psnr"].as_f64().unwrap();
+    assert!(psnr > 15.0 && v["ssim"].as_f64().unwrap() > 0.3, "{v}");
+    let renders = dir.path().join("renders");
+    let out = std::process::Command::new(&bin)
+        .arg("render")
+        .arg(&model)
+        .args(["--scene", test.to_str().unwrap(), "--out"])
+        .arg(&renders)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["r_0.png", "r_0_alpha.png", "r_0_depth.png"] {
+        let img = image::open(renders.join(f)).unwrap();
+        assert_eq!((img.width(), img.height()), (50, 50));
+    }
+}
+
+/// Issue 5's target: lego at 200x200, 100 train views, 5 minutes of training, >= 28 dB on the 25
+/// test views. Slow: `cargo test --release --test field -- --ignored` (or examples/field_bench).
+#[test]
+#[ignore]
+fn lego_200_reaches_28_db_within_5_minutes() {
+    let (Some(views), Some(test)) = (lego_views("train", 4, 1), lego_views("test", 4, 1)) else {
+        return;
+    };
+    let (mut t, rays, setup) =
+        field::prepare(&views, &SetupConfig::default(), TrainConfig::default()).unwrap();
+    let stop = field::StopRule {
+        time_budget: Some(300.0),
+        plateau_db: None,
+        window: 500,
+    };
+    let run = field::run(&mut t, &views, &rays, &stop, |_, _| {});
+    let ev = field::eval::evaluate(&t.field, &field::RenderOptions::default(), &test);
+    eprintln!(
+        "lego 200^2: {} steps in {:.0} s ({:.0} rays/s), grid {:?}, {:.1}% rays pruned: test PSNR {:.2} dB, SSIM {:.4}",
+        run.steps,
+        run.seconds,
+        run.rays_per_second,
+        setup.final_dims,
+        100.0 * setup.pruned_fraction,
+        ev.psnr,
+        ev.ssim
+    );
+    assert_eq!(ev.num_views, 25);
+    assert!(ev.psnr >= 28.0, "PSNR {}", ev.psnr);
+}
