@@ -114,7 +114,10 @@ fn triangulate_without_outliers(
     // Random samples leave gaps far wider than their median spacing, and overlapping surfaces
     // crowd some areas: a high quantile of the nearest-neighbour distances measures the gaps
     // the hull must bridge.
-    let spacing = quantile(nn.iter().map(|x| x.1).filter(|d| d.is_finite()).collect(), 0.9)?;
+    let spacing = quantile(
+        nn.iter().map(|x| x.1).filter(|d| d.is_finite()).collect(),
+        0.9,
+    )?;
     if spacing <= 0.0 {
         return None;
     }

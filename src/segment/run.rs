@@ -35,9 +35,9 @@ pub struct SegmentCmd {
     /// Positive prompts per view.
     #[arg(long, default_value_t = 8)]
     pub prompts: usize,
-    /// IoU with the expected (alpha-shape) mask below which a view is obstructed.
-    #[arg(long, default_value_t = 0.45)]
-    pub obstruction_iou: f64,
+    /// Coverage of the expected (alpha-shape) mask below which a view is obstructed.
+    #[arg(long, default_value_t = 0.52)]
+    pub obstruction_coverage: f64,
     /// Replace the output folder if it exists.
     #[arg(long)]
     pub overwrite: bool,
@@ -243,7 +243,7 @@ impl SegmentCmd {
         let prompts = group_prompts(argv, &scene)?;
         let opts = PropagationOptions {
             max_prompts: self.prompts,
-            obstruction_iou: self.obstruction_iou,
+            obstruction_coverage: self.obstruction_coverage,
             ..Default::default()
         };
         let (report, _) = segment_scene(&scene, &prompts, &opts, &self.out, self.overwrite)?;
