@@ -115,6 +115,25 @@ pub struct ViewResult {
     pub prompts: Vec<PointPrompt>,
 }
 
+impl ViewResult {
+    /// A view not (yet) segmented: absent until a mask says otherwise.
+    fn unsegmented(name: &str) -> Self {
+        ViewResult {
+            view: name.to_string(),
+            status: ViewStatus::Absent,
+            score: 0.0,
+            expected_iou: None,
+            expected_coverage: None,
+            num_prompts: 0,
+            order: None,
+            flags: vec![],
+            mask: None,
+            logits: None,
+            prompts: vec![],
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct ObjectSegmentation {
     pub name: String,
@@ -148,19 +167,7 @@ pub fn propagate(
     let mut views: Vec<ViewResult> = scene
         .images
         .iter()
-        .map(|im| ViewResult {
-            view: im.name.clone(),
-            status: ViewStatus::Absent,
-            score: 0.0,
-            expected_iou: None,
-            expected_coverage: None,
-            num_prompts: 0,
-            order: None,
-            flags: vec![],
-            mask: None,
-            logits: None,
-            prompts: vec![],
-        })
+        .map(|im| ViewResult::unsegmented(&im.name))
         .collect();
 
     // The clicked view.
@@ -491,19 +498,7 @@ pub fn projection_baseline(
     let points = members(&votes);
     let mut views = Vec::with_capacity(scene.images.len());
     for (v, im) in scene.images.iter().enumerate() {
-        let mut res = ViewResult {
-            view: im.name.clone(),
-            status: ViewStatus::Absent,
-            score: 0.0,
-            expected_iou: None,
-            expected_coverage: None,
-            num_prompts: 0,
-            order: None,
-            flags: vec![],
-            mask: None,
-            logits: None,
-            prompts: vec![],
-        };
+        let mut res = ViewResult::unsegmented(&im.name);
         if v == prompt.view {
             record(&mut res, first.clone(), prompt.points.clone(), 0);
         } else {
