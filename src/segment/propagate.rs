@@ -148,13 +148,8 @@ struct Votes {
     outside: u32,
 }
 
-/// Run Algorithm 1 for one object.
-pub fn propagate(
-    scene: &Scene,
-    prompt: &ObjectPrompt,
-    seg: &mut dyn ViewSegmenter,
-    opts: &PropagationOptions,
-) -> Result<ObjectSegmentation> {
+/// Propagation needs 2D-3D tracks; say how to get them.
+pub fn require_tracks(scene: &Scene) -> Result<()> {
     if !scene.has_tracks() {
         return Err(Error::invalid(format!(
             "{} has no 2D-3D feature tracks; run `objnerf sfm {} --out DIR` first and segment DIR",
@@ -162,6 +157,17 @@ pub fn propagate(
             scene.source.display()
         )));
     }
+    Ok(())
+}
+
+/// Run Algorithm 1 for one object.
+pub fn propagate(
+    scene: &Scene,
+    prompt: &ObjectPrompt,
+    seg: &mut dyn ViewSegmenter,
+    opts: &PropagationOptions,
+) -> Result<ObjectSegmentation> {
+    require_tracks(scene)?;
     let n_views = scene.images.len();
     let mut votes = vec![Votes::default(); scene.points.len()];
     let mut views: Vec<ViewResult> = scene

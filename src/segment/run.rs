@@ -190,6 +190,7 @@ pub fn segment_scene(
     overwrite: bool,
 ) -> Result<(SegmentReport, Vec<ObjectSegmentation>)> {
     let t0 = Instant::now();
+    super::propagate::require_tracks(scene)?;
     let dest = AtomicDir::new(out, overwrite)?;
     let models = ModelsDir::from_env()?;
     let seg = Segmenter::open(&models, 0)?;
