@@ -219,63 +219,37 @@ fn demo_scene_every_object_from_one_click() {
 
 #[test]
 fn bad_requests_are_clear_errors() {
-    // A scene without tracks says to run sfm; nothing is written.
     let Some(lego) = common::shared_data("lego") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("seg");
-    let run = |args: &[&str]| {
-        std::process::Command::new(common::objnerf_bin())
-            .args(args)
-            .output()
-            .unwrap()
-    };
     let json = lego.join("transforms_train.json");
-    let o = run(&[
-        "segment",
-        json.to_str().unwrap(),
-        "--view",
-        "r_0",
-        "--point",
-        "400,400",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    // `objnerf segment` on lego (no tracks) with a view and a click: it must fail; its stderr.
+    let fails = |view: &str, point: &str| -> String {
+        let o = std::process::Command::new(common::objnerf_bin())
+            .args([
+                "segment",
+                json.to_str().unwrap(),
+                "--view",
+                view,
+                "--point",
+                point,
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        String::from_utf8_lossy(&o.stderr).to_string()
+    };
+    // A scene without tracks says to run sfm.
+    let err = fails("r_0", "400,400");
     assert!(err.contains("objnerf sfm"), "{err}");
-    assert!(!out.exists());
-    // A click outside the view and an unknown view name.
-    let o = run(&[
-        "segment",
-        json.to_str().unwrap(),
-        "--view",
-        "r_0",
-        "--point",
-        "900,10",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains("outside view"),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let o = run(&[
-        "segment",
-        json.to_str().unwrap(),
-        "--view",
-        "nope",
-        "--point",
-        "1,1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains("no view 'nope'"),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let err = fails("r_0", "900,10");
+    assert!(err.contains("outside view"), "{err}");
+    let err = fails("nope", "1,1");
+    assert!(err.contains("no view 'nope'"), "{err}");
+    // Nothing is written.
     assert!(!out.exists());
 }
