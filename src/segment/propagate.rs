@@ -50,6 +50,9 @@ pub struct PropagationOptions {
     pub max_prompts: usize,
     /// Negative prompts per view, from points known to lie outside the object.
     pub max_negatives: usize,
+    /// Also prompt with the box around the view's features of D, grown by this fraction of its
+    /// size: points alone let SAM pick one part of a many-part object (lego's bricks).
+    pub box_padding: Option<f64>,
     /// Features closer than this to a mask's edge do not vote.
     pub edge_margin_px: f64,
     /// The mask covering less than this fraction of the expected mask marks a view obstructed.
@@ -68,6 +71,7 @@ impl Default for PropagationOptions {
         PropagationOptions {
             max_prompts: 8,
             max_negatives: 3,
+            box_padding: Some(0.1),
             edge_margin_px: 3.0,
             obstruction_coverage: 0.52,
             min_prompts: 1,
@@ -226,7 +230,8 @@ pub fn propagate(
             continue;
         }
         let prompts = view_prompts(scene, v, &votes, &in_d, opts);
-        let result = seg.segment(scene, v, &prompts, None)?;
+        let bbox = opts.box_padding.map(|pad| prompt_box(scene, v, &in_d, pad));
+        let result = seg.segment(scene, v, &prompts, bbox)?;
         vote(scene, v, &result.mask, opts.edge_margin_px, &mut votes);
         record(&mut views[v], result, prompts, order);
     }
@@ -335,6 +340,24 @@ fn view_prompts(
         );
     }
     prompts
+}
+
+/// The box around view `v`'s features whose point is in D, grown by `pad` of its size.
+fn prompt_box(scene: &Scene, v: usize, in_d: &[bool], pad: f64) -> [f64; 4] {
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for f in scene.images[v]
+        .features
+        .iter()
+        .filter(|f| f.point.is_some_and(|p| in_d[p]))
+    {
+        lo = lo.min(f.xy);
+        hi = hi.max(f.xy);
+    }
+    let g = (hi - lo) * pad;
+    let cam = scene.camera_of(&scene.images[v]);
+    let max = DVec2::new(cam.width as f64, cam.height as f64);
+    let (lo, hi) = ((lo - g).max(DVec2::ZERO), (hi + g).min(max));
+    [lo.x, lo.y, hi.x, hi.y]
 }
 
 /// Up to `k` points spread out: start at the point nearest the centroid, then repeatedly take the
