@@ -65,6 +65,11 @@ enum Command {
     /// Segment objects in every view from clicks in one (Obj-NeRF's Algorithm 1): masks, segmented
     /// points, contact sheets and report.json.
     Segment(objnerf::segment::run::SegmentCmd),
+    /// Click to mesh in one command: segment, train each object's field, mesh it, render a
+    /// turntable; everything in one run folder with report.json.
+    Extract(objnerf::extract::cli::ExtractCmd),
+    /// Marching cubes on a trained model: a mesh with vertex colours as .glb, .obj or .ply.
+    Mesh(objnerf::mesh::cli::MeshCmd),
     /// Segment one image with SAM from point and box prompts; writes the mask and an overlay.
     SegmentView(objnerf::segment::cli::SegmentViewCmd),
     /// Benchmarks.
@@ -72,14 +77,9 @@ enum Command {
         #[command(subcommand)]
         what: objnerf::segment::cli::BenchSamCmd,
     },
-    /// Write the built-in synthetic scene (four textured objects, a camera ring, a COLMAP model
-    /// with true tracks, and truth masks, depth and meshes).
-    /// The main job on the built-in demo scene: render it with its truth, then describe it.
-    Demo {
-        /// Run folder (its contents are replaced).
-        #[arg(long, default_value = "runs/demo")]
-        out: PathBuf,
-    },
+    /// The main job on the built-in demo scene: render it, extract one object from one click
+    /// (segment, train, mesh, turntable) and score each stage against the scene's exact truth.
+    Demo(objnerf::demo::job::DemoCmd),
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene {
         /// Output folder (created; must be empty unless --overwrite).
@@ -220,26 +220,11 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Models { action } => action.run(),
         Command::SegmentView(cmd) => cmd.run(),
+        Command::Mesh(cmd) => cmd.run(),
+        Command::Extract(cmd) => cmd.run(&std::env::args().collect::<Vec<_>>()),
         Command::Segment(cmd) => cmd.run(&std::env::args().collect::<Vec<_>>()),
         Command::Bench { what } => what.run(),
-        Command::Demo { out } => {
-            let scene_dir = out.join("scene");
-            let opts = objnerf::demo::DemoOptions {
-                overwrite: true,
-                ..Default::default()
-            };
-            let s = objnerf::demo::write_demo_scene(&opts, &scene_dir)?;
-            println!(
-                "demo scene: {} views, {} points in {:.1} s -> {}",
-                s.views,
-                s.points,
-                s.seconds,
-                s.out.display()
-            );
-            let scene = Scene::load(&scene_dir)?;
-            print!("{}", objnerf::info::scene_info(&scene).to_text());
-            Ok(())
-        }
+        Command::Demo(cmd) => cmd.run(),
         Command::DemoScene {
             out,
             seed,
@@ -284,6 +269,7 @@ fn run(cli: Cli) -> Result<()> {
             resume,
         } => {
             let args = fc::TrainArgs {
+                exclude_views: vec![],
                 masks: fc::parse_masks(&masks, &scene)?,
                 scene,
                 out: out.clone(),
@@ -299,29 +285,9 @@ fn run(cli: Cli) -> Result<()> {
                 },
                 resume,
             };
-            let bar = indicatif::ProgressBar::new(steps as u64);
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{elapsed_precise} [{bar:30}] {pos}/{len} {msg}",
-                )
-                .expect("valid template")
-                .progress_chars("=> "),
-            );
-            let batch = objnerf::field::TrainConfig::default().batch as f64;
-            let mut first = None;
-            let report = fc::train(&args, |s, secs| {
-                let f = *first.get_or_insert(s.step - 1);
-                bar.set_position(s.step as u64);
-                if s.step % 10 == 0 {
-                    bar.set_message(format!(
-                        "loss {:.5}  psnr {:.2} dB  {:.0} rays/s",
-                        s.loss,
-                        s.psnr,
-                        (s.step - f) as f64 * batch / secs.max(1e-9)
-                    ));
-                }
-            })?;
-            bar.finish_and_clear();
+            let mut bar = objnerf::util::progress::TrainProgress::new(steps, "train");
+            let report = fc::train(&args, |s, secs| bar.update(s, secs))?;
+            bar.finish();
             if let Some(s) = &report.setup {
                 eprintln!(
                     "box {:?}..{:?}; grid {:?} ({} vertices): {}",

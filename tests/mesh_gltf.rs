@@ -1,7 +1,7 @@
 //! Marching cubes → glTF binary, checked by the Khronos glTF-Validator and read back.
 mod common;
 
-use objnerf::mesh::{export, gltf::write_glb, marching::marching_cubes, Mesh};
+use objnerf::mesh::{gltf::write_glb, io, marching::marching_cubes, Mesh};
 use std::process::Command;
 
 fn sphere_mesh(n: usize) -> Mesh {
@@ -90,8 +90,8 @@ fn glb_passes_the_khronos_validator_and_loads_back() {
     );
 
     // PLY and OBJ beside it.
-    export::write_ply(&mesh, &dir.path().join("sphere.ply")).unwrap();
-    export::write_obj(&mesh, &dir.path().join("sphere.obj")).unwrap();
+    io::write_ply(&mesh, &dir.path().join("sphere.ply")).unwrap();
+    io::write_obj(&mesh, &dir.path().join("sphere.obj")).unwrap();
     let obj = std::fs::read_to_string(dir.path().join("sphere.obj")).unwrap();
     assert_eq!(
         obj.lines().filter(|l| l.starts_with("f ")).count(),

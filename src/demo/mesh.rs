@@ -3,23 +3,40 @@
 //! the mug's cup are watertight; the mug's handle is an open tube whose ends sink into the wall.
 
 use super::geometry::{Object, Shape};
-use crate::error::Result;
-use crate::util::write_atomic;
 use glam::DVec3;
 use std::collections::HashMap;
 use std::f64::consts::{PI, TAU};
-use std::path::Path;
 
+/// The exact tessellation, in f64 (written out as a [`crate::mesh::Mesh`]).
 #[derive(Clone, Debug, Default)]
-pub struct Mesh {
+pub struct Tessellation {
     pub vertices: Vec<DVec3>,
     pub faces: Vec<[u32; 3]>,
+}
+
+impl Tessellation {
+    /// As the project's mesh type (f32 positions, normals from the faces).
+    pub fn to_mesh(&self, name: &str) -> crate::mesh::Mesh {
+        let mut m = crate::mesh::Mesh {
+            name: name.to_string(),
+            positions: self
+                .vertices
+                .iter()
+                .map(|v| v.as_vec3().to_array())
+                .collect(),
+            normals: vec![],
+            colors: None,
+            triangles: self.faces.clone(),
+        };
+        m.compute_normals();
+        m
+    }
 }
 
 /// Builds a mesh, merging vertices that coincide (to 1e-9 m).
 #[derive(Default)]
 struct Builder {
-    mesh: Mesh,
+    mesh: Tessellation,
     index: HashMap<[i64; 3], u32>,
 }
 
@@ -61,7 +78,7 @@ fn ring(k: f64, n: usize) -> (f64, f64) {
 }
 
 /// The object's surface as a fine triangle mesh in world coordinates, faces wound outwards.
-pub fn tessellate(obj: &Object) -> Mesh {
+pub fn tessellate(obj: &Object) -> Tessellation {
     let mut b = Builder::default();
     const N: usize = 128;
     match obj.shape {
@@ -172,43 +189,6 @@ pub fn tessellate(obj: &Object) -> Mesh {
     mesh
 }
 
-/// Binary little-endian PLY: float x y z, faces as uchar count + int indices.
-pub fn write_ply(mesh: &Mesh, path: &Path) -> Result<()> {
-    write_atomic(path, |w| {
-        write!(
-            w,
-            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-            mesh.vertices.len(),
-            mesh.faces.len()
-        )?;
-        for v in &mesh.vertices {
-            for c in v.to_array() {
-                w.write_all(&(c as f32).to_le_bytes())?;
-            }
-        }
-        for f in &mesh.faces {
-            w.write_all(&[3u8])?;
-            for i in f {
-                w.write_all(&(*i as i32).to_le_bytes())?;
-            }
-        }
-        Ok(())
-    })
-}
-
-/// Wavefront OBJ (text, 1-based indices).
-pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<()> {
-    write_atomic(path, |w| {
-        for v in &mesh.vertices {
-            writeln!(w, "v {:.7} {:.7} {:.7}", v.x, v.y, v.z)?;
-        }
-        for f in &mesh.faces {
-            writeln!(w, "f {} {} {}", f[0] + 1, f[1] + 1, f[2] + 1)?;
-        }
-        Ok(())
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,7 +197,7 @@ mod tests {
 
     /// Every edge shared by exactly two faces, in opposite directions: closed and consistently
     /// wound.
-    fn is_watertight(m: &Mesh) -> bool {
+    fn is_watertight(m: &Tessellation) -> bool {
         let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
         for f in &m.faces {
             for k in 0..3 {

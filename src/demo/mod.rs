@@ -20,6 +20,7 @@
 //! `seed`, and the parallel rendering writes each pixel from its position alone.
 
 pub mod geometry;
+pub mod job;
 pub mod mesh;
 pub mod render;
 pub mod texture;
@@ -185,10 +186,10 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
     crate::scene::formats::nerfstudio::write(&scene, &root.join("transforms.json"))?;
 
     for obj in &world.objects {
-        let m = mesh::tessellate(obj);
+        let m = mesh::tessellate(obj).to_mesh(obj.name);
         let d = root.join("truth/meshes");
-        mesh::write_ply(&m, &d.join(format!("{}.ply", obj.name)))?;
-        mesh::write_obj(&m, &d.join(format!("{}.obj", obj.name)))?;
+        crate::mesh::io::write_ply(&m, &d.join(format!("{}.ply", obj.name)))?;
+        crate::mesh::io::write_obj(&m, &d.join(format!("{}.obj", obj.name)))?;
     }
 
     let (w, h) = (opts.width as usize, opts.height as usize);

@@ -80,6 +80,8 @@ pub struct TrainArgs {
     pub setup: SetupConfig,
     /// Continue from this model (its grid, step and optimiser state).
     pub resume: Option<PathBuf>,
+    /// Views left out of training (e.g. the ones segmentation found obstructed).
+    pub exclude_views: Vec<String>,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -105,6 +107,7 @@ pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Res
         DepthMode::Sparse => super::depth::add_sparse_depth(&mut views, &scene, args.downscale)?,
         DepthMode::Dense => super::depth::add_dense_depth(&mut views, &scene, args.downscale)?,
     };
+    views.retain(|v| !args.exclude_views.contains(&v.name));
     if views.is_empty() {
         return Err(Error::invalid("the scene has no views to train on"));
     }

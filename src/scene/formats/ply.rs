@@ -250,6 +250,22 @@ impl Body<'_> {
 /// Read the vertices (x, y, z and, if present, red, green, blue) of a PLY file. Points without
 /// colour are white; float colours in [0, 1] are scaled to 0-255.
 pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
+    Ok(read(path, false)?.vertices)
+}
+
+/// A PLY file's vertices and faces (polygons fanned into triangles).
+#[derive(Clone, Debug, Default)]
+pub struct PlyData {
+    pub vertices: Vec<(DVec3, [u8; 3])>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Read vertices and the `face` element's `vertex_indices` (or `vertex_index`).
+pub fn read_mesh(path: &Path) -> Result<PlyData> {
+    read(path, true)
+}
+
+fn read(path: &Path, with_faces: bool) -> Result<PlyData> {
     let buf = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let (encoding, elements, body_start) = parse_header(path, &buf)?;
     let body = &buf[body_start..];
@@ -285,6 +301,10 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
         (Some(r), Some(g), Some(b)) => Some([r, g, b]),
         _ => None,
     };
+    let face = elements.iter().position(|e| e.name == "face");
+    if with_faces && face.is_none() {
+        return Err(Error::format(path, "PLY has no face element: not a mesh"));
+    }
     // A corrupt count must not make us allocate before the data runs out.
     let min_vertex_bytes: usize = match encoding {
         Encoding::BinaryLe => elements[vertex]
@@ -305,10 +325,20 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
             ),
         ));
     }
-    let mut out = Vec::with_capacity(elements[vertex].count);
+    let last = if with_faces {
+        vertex.max(face.unwrap_or(0))
+    } else {
+        vertex
+    };
+    let mut out = PlyData {
+        vertices: Vec::with_capacity(elements[vertex].count),
+        triangles: Vec::new(),
+    };
     let mut values = Vec::new();
-    for el in &elements[..=vertex] {
-        let is_vertex = el.name == "vertex";
+    let mut polygon: Vec<u32> = Vec::new();
+    for (e, el) in elements[..=last].iter().enumerate() {
+        let is_vertex = e == vertex;
+        let is_face = with_faces && Some(e) == face;
         for i in 0..el.count {
             values.clear();
             for p in &el.props {
@@ -322,8 +352,17 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
                                 format!("{} {i}: list length {n} is not plausible", el.name),
                             ));
                         }
+                        let indices =
+                            is_face && matches!(p.name.as_str(), "vertex_indices" | "vertex_index");
+                        polygon.clear();
                         for _ in 0..n as usize {
-                            r.scalar(p.ty, &el.name, i)?;
+                            let v = r.scalar(p.ty, &el.name, i)?;
+                            if indices {
+                                polygon.push(v as u32);
+                            }
+                        }
+                        for k in 1..polygon.len().saturating_sub(1) {
+                            out.triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
                         }
                         values.push(n);
                     }
@@ -347,8 +386,18 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, [u8; 3])>> {
                     v.round().clamp(0.0, 255.0) as u8
                 }),
             };
-            out.push((xyz, rgb));
+            out.vertices.push((xyz, rgb));
         }
+    }
+    let n = out.vertices.len() as u32;
+    if let Some(t) = out.triangles.iter().find(|t| t.iter().any(|&v| v >= n)) {
+        return Err(Error::format(
+            path,
+            format!(
+                "a face uses vertex {} but there are only {n}",
+                t.iter().max().unwrap()
+            ),
+        ));
     }
     Ok(out)
 }

@@ -78,3 +78,24 @@ pub fn to_srgb8(c: f32) -> u8 {
     };
     (s * 255.0 + 0.5) as u8
 }
+
+/// Read a triangle mesh from a PLY file (positions and faces; normals recomputed).
+pub fn read_ply(path: &Path) -> Result<Mesh> {
+    let data = crate::scene::formats::ply::read_mesh(path)?;
+    let mut m = Mesh {
+        name: path
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default(),
+        positions: data
+            .vertices
+            .iter()
+            .map(|(p, _)| p.as_vec3().to_array())
+            .collect(),
+        normals: vec![],
+        colors: None,
+        triangles: data.triangles,
+    };
+    m.compute_normals();
+    Ok(m)
+}

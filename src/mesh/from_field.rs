@@ -1,0 +1,211 @@
+//! A mesh out of an object field: marching cubes on the field's raw density, vertex colours from
+//! its view-independent colour.
+//!
+//! The iso-level is an opacity: the surface is where one finest voxel of material would be
+//! `iso_alpha` opaque, i.e. density softplus(raw + shift) = -ln(1 - iso_alpha) per voxel length.
+//! Marching cubes runs on the *raw* grid with the matching raw level: softplus is monotone and the
+//! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
+//! raw trilinear field at one level is exactly the surface the renderer sees.
+
+use super::{marching::marching_cubes, Mesh};
+use crate::error::{Error, Result};
+use crate::field::model::{sigmoid, Field};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// How to cut a field into a mesh.
+#[derive(Clone, Debug)]
+pub struct FieldMeshOptions {
+    /// Samples along the box's longest side (default: the field's own vertex grid, where the
+    /// trilinear field is exact).
+    pub resolution: Option<usize>,
+    /// Opacity of one finest voxel at the surface (0..1).
+    pub iso_alpha: f32,
+    /// Drop connected pieces with fewer triangles than this fraction of the largest (0 keeps all).
+    pub min_component: f64,
+}
+
+impl Default for FieldMeshOptions {
+    fn default() -> Self {
+        FieldMeshOptions {
+            resolution: None,
+            iso_alpha: 0.5,
+            min_component: 0.05,
+        }
+    }
+}
+
+/// What the extraction did, for reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct FieldMeshReport {
+    pub sample_dims: [usize; 3],
+    pub iso_alpha: f32,
+    pub iso_raw: f32,
+    pub pieces_removed: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+}
+
+/// Raw density below which a sample is empty (unoccupied cells get it).
+const EMPTY: f32 = -1.0e4;
+
+/// The raw density level matching an opacity per finest voxel.
+pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
+    if !(iso_alpha > 0.0 && iso_alpha < 1.0) {
+        return Err(Error::invalid(format!(
+            "the iso-level is an opacity and must lie strictly between 0 and 1, not {iso_alpha}"
+        )));
+    }
+    let sigma = -(1.0 - iso_alpha).ln();
+    // softplus^-1(sigma) = ln(exp(sigma) - 1)
+    Ok(sigma.exp_m1().ln() - field.shift())
+}
+
+/// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
+fn raw_at(field: &Field, p: Vec3) -> f32 {
+    let g = field.to_grid(p);
+    let dims = field.grid.dims;
+    let inside = (0..3).all(|a| g[a] >= 0.0 && g[a] <= (dims[a] - 1) as f32);
+    if !inside {
+        return EMPTY;
+    }
+    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
+    if !field.occupied(field.cell_index(b)) {
+        return EMPTY;
+    }
+    let k = field.grid.corners_of(b, fr);
+    field.grid.interp_channel(&k, 0)
+}
+
+/// View-independent colour (the SH DC term) at a world point, linear 0..1.
+fn base_color_at(field: &Field, p: Vec3) -> [f32; 3] {
+    const C0: f32 = 0.282_094_8;
+    let g = field.to_grid(p);
+    let dims = field.grid.dims;
+    let g = Vec3::new(
+        g.x.clamp(0.0, (dims[0] - 1) as f32),
+        g.y.clamp(0.0, (dims[1] - 1) as f32),
+        g.z.clamp(0.0, (dims[2] - 1) as f32),
+    );
+    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
+    let k = field.grid.corners_of(b, fr);
+    let sh = field.sh_k();
+    [0, 1, 2].map(|c| sigmoid(C0 * field.grid.interp_channel(&k, 1 + c * sh)))
+}
+
+/// Colour at a surface vertex: the DC colour composited along the inward normal over two voxels,
+/// as a camera looking straight at the surface would see it (the iso-surface itself sits where
+/// the field is only half opaque, and colour there is poorly constrained).
+fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
+    let step = 0.25 * field.voxel;
+    let delta = step / field.config.base_voxel;
+    let shift = field.shift();
+    let mut trans = 1.0f32;
+    let mut acc = [0.0f32; 3];
+    let mut wsum = 0.0f32;
+    for i in -2..8 {
+        let q = p - n * (i as f32 * step);
+        let raw = raw_at(field, q);
+        if raw <= EMPTY {
+            continue;
+        }
+        let alpha = 1.0 - (-crate::field::model::softplus(raw + shift) * delta).exp();
+        let w = trans * alpha;
+        if w > 0.0 {
+            let c = base_color_at(field, q);
+            for k in 0..3 {
+                acc[k] += w * c[k];
+            }
+            wsum += w;
+        }
+        trans *= 1.0 - alpha;
+        if trans < 1e-3 {
+            break;
+        }
+    }
+    if wsum <= 1e-6 {
+        return base_color_at(field, p);
+    }
+    acc.map(|a| (a / wsum).clamp(0.0, 1.0))
+}
+
+/// Cut `field` at `opts.iso_alpha` into a mesh in the field's world units, with normals and
+/// vertex colours. Errors when nothing in the field reaches the iso-level.
+pub fn mesh_field(
+    field: &Field,
+    name: &str,
+    opts: &FieldMeshOptions,
+) -> Result<(Mesh, FieldMeshReport)> {
+    let iso = iso_raw(field, opts.iso_alpha)?;
+    let extent = field.box_max - field.box_min;
+    let (spacing, inner) = match opts.resolution {
+        Some(n) if n < 4 => {
+            return Err(Error::invalid(format!(
+                "--resolution {n}: use at least 4 samples along the longest side"
+            )))
+        }
+        Some(n) => {
+            let s = extent.max_element() / (n - 1) as f32;
+            (s, [0, 1, 2].map(|a| (extent[a] / s).round() as usize + 1))
+        }
+        None => (field.voxel, field.grid.dims),
+    };
+    // One empty sample around the box closes surfaces that touch its faces.
+    let dims = inner.map(|d| d + 2);
+    let origin = field.box_min - Vec3::splat(spacing);
+    let [nx, ny, nz] = dims;
+    let mut values = vec![EMPTY; nx * ny * nz];
+    values
+        .par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(z, slab)| {
+            if z == 0 || z == nz - 1 {
+                return;
+            }
+            for y in 1..ny - 1 {
+                for x in 1..nx - 1 {
+                    let p = origin + Vec3::new(x as f32, y as f32, z as f32) * spacing;
+                    // Sample positions on the far faces may overshoot the box by rounding.
+                    let p = p.min(field.box_max);
+                    slab[x + nx * y] = raw_at(field, p);
+                }
+            }
+        });
+    if !values.iter().any(|&v| v > iso) {
+        let max = values.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let max_alpha = if max <= EMPTY {
+            0.0
+        } else {
+            1.0 - (-crate::field::model::softplus(max + field.shift())).exp()
+        };
+        return Err(Error::invalid(format!(
+            "the field is empty at iso-level {}: its most opaque voxel reaches alpha {max_alpha:.4}; \
+             lower --iso or check the training (masks, box)",
+            opts.iso_alpha
+        )));
+    }
+    let grid = marching_cubes(&values, dims, iso);
+    let mut mesh = Mesh::from_grid(name, grid, origin.as_dvec3(), DVec3::splat(spacing as f64));
+    let pieces_removed = if opts.min_component > 0.0 {
+        mesh.remove_small_components(opts.min_component)
+    } else {
+        0
+    };
+    let colors: Vec<[f32; 3]> = mesh
+        .positions
+        .par_iter()
+        .zip(&mesh.normals)
+        .map(|(p, n)| vertex_color(field, Vec3::from_array(*p), Vec3::from_array(*n)))
+        .collect();
+    mesh.colors = Some(colors);
+    let report = FieldMeshReport {
+        sample_dims: dims,
+        iso_alpha: opts.iso_alpha,
+        iso_raw: iso,
+        pieces_removed,
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+    };
+    Ok((mesh, report))
+}

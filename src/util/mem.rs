@@ -1,0 +1,14 @@
+//! Process memory, for reports and benchmarks.
+
+/// The process's peak resident set size in bytes (Linux `VmHWM`), or None where it is unknown.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Peak RSS in MiB (0 where unknown), rounded.
+pub fn peak_rss_mib() -> u64 {
+    peak_rss_bytes().map(|b| (b + (1 << 19)) >> 20).unwrap_or(0)
+}
