@@ -2,7 +2,6 @@
 mod common;
 
 use objnerf::mesh::{gltf::write_glb, io, marching::marching_cubes, Mesh};
-use std::process::Command;
 
 fn sphere_mesh(n: usize) -> Mesh {
     let c = (n - 1) as f32 / 2.0;
@@ -33,28 +32,6 @@ fn sphere_mesh(n: usize) -> Mesh {
     m
 }
 
-/// Run the validator (scripts/setup installs node and the npm package) and return its report.
-fn validate(path: &std::path::Path) -> serde_json::Value {
-    let script = common::repo_root().join("tools/gltf-validator/validate.mjs");
-    if !common::repo_root()
-        .join("tools/gltf-validator/node_modules/gltf-validator")
-        .exists()
-    {
-        panic!("glTF-Validator is not installed: run `npm install --prefix tools/gltf-validator` (scripts/setup does)");
-    }
-    let out = Command::new("node")
-        .arg(&script)
-        .arg(path)
-        .output()
-        .expect("node runs (scripts/setup installs it)");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "validator output is not JSON ({e}): {}",
-            String::from_utf8_lossy(&out.stderr)
-        )
-    })
-}
-
 #[test]
 fn glb_passes_the_khronos_validator_and_loads_back() {
     let mesh = sphere_mesh(40);
@@ -66,7 +43,7 @@ fn glb_passes_the_khronos_validator_and_loads_back() {
         Some(serde_json::json!({"objnerf": {"note": "test"}})),
     )
     .unwrap();
-    let report = validate(&path);
+    let report = common::validate_gltf(&path);
     assert_eq!(report["numErrors"], 0, "validator errors: {report}");
 
     let (doc, buffers, _) = gltf::import(&path).unwrap();

@@ -8,7 +8,6 @@
 
 use super::tables::TRI_TABLE;
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// Which grid edge each of the 12 cube edges is: (axis 0=x 1=y 2=z, corner offset dx, dy, dz).
 const EDGES: [(u8, usize, usize, usize); 12] = [
@@ -24,16 +23,6 @@ const EDGES: [(u8, usize, usize, usize); 12] = [
     (2, 1, 0, 0),
     (2, 1, 1, 0),
     (2, 0, 1, 0),
-];
-const CORNERS: [(usize, usize, usize); 8] = [
-    (0, 0, 0),
-    (1, 0, 0),
-    (1, 1, 0),
-    (0, 1, 0),
-    (0, 0, 1),
-    (1, 0, 1),
-    (1, 1, 1),
-    (0, 1, 1),
 ];
 const NONE: u32 = u32::MAX;
 
@@ -54,15 +43,23 @@ pub fn marching_cubes(values: &[f32], dims: [usize; 3], iso: f32) -> GridMesh {
     let slabs = nz - 1;
     let chunks = (rayon::current_num_threads() * 4).clamp(1, slabs);
     let per = slabs.div_ceil(chunks);
-    let parts: Vec<(usize, GridMesh)> = (0..slabs.div_ceil(per))
+    let parts: Vec<Chunk> = (0..slabs.div_ceil(per))
         .into_par_iter()
         .map(|c| {
             let z0 = c * per;
             let z1 = ((c + 1) * per).min(slabs);
-            (z0, march_chunk(values, dims, iso, z0, z1))
+            march_chunk(values, dims, iso, z0, z1)
         })
         .collect();
     stitch(parts)
+}
+
+/// One chunk's mesh, and which of its vertices lie on its first and last planes (shared with the
+/// chunks before and after it).
+struct Chunk {
+    mesh: GridMesh,
+    first_plane: std::ops::Range<u32>,
+    last_plane: std::ops::Range<u32>,
 }
 
 /// The grid a chunk reads, and how a crossing edge becomes a vertex.
@@ -73,12 +70,31 @@ struct Grid<'a> {
     iso: f32,
 }
 
+/// A row of samples: all outside, all inside, or both.
+#[derive(Clone, Copy, PartialEq)]
+enum Row {
+    Out,
+    In,
+    Mixed,
+}
+
+/// One plane of samples: inside bits (below the iso-level, Bourke's convention: bit set = 1),
+/// the vertex ids of its crossed x- and y-edges (NONE where not crossed), and per-row states.
+struct Plane {
+    below: Vec<u8>,
+    xe: Vec<u32>,
+    ye: Vec<u32>,
+    rows: Vec<Row>,
+}
+
 impl Grid<'_> {
+    #[inline]
     fn at(&self, x: usize, y: usize, z: usize) -> f32 {
         self.v[x + self.nx * (y + self.ny * z)]
     }
 
     /// The vertex where the surface crosses the edge a-b, linearly interpolated.
+    #[inline]
     fn vertex(&self, mesh: &mut GridMesh, a: [usize; 3], b: [usize; 3]) -> u32 {
         let (va, vb) = (self.at(a[0], a[1], a[2]), self.at(b[0], b[1], b[2]));
         let t = ((self.iso - va) / (vb - va)).clamp(0.0, 1.0);
@@ -87,63 +103,105 @@ impl Grid<'_> {
         (mesh.positions.len() - 1) as u32
     }
 
-    /// Vertex ids of the crossed x- and y-edges of plane z (NONE where not crossed).
-    fn plane_edges(&self, mesh: &mut GridMesh, z: usize) -> (Vec<u32>, Vec<u32>) {
+    fn plane(&self, mesh: &mut GridMesh, z: usize) -> Plane {
         let (nx, ny, iso) = (self.nx, self.ny, self.iso);
+        let base = nx * ny * z;
+        let below: Vec<u8> = self.v[base..base + nx * ny]
+            .iter()
+            .map(|&v| (v <= iso) as u8)
+            .collect();
         let mut xe = vec![NONE; nx * ny];
         let mut ye = vec![NONE; nx * ny];
+        let mut rows = vec![Row::Mixed; ny];
         for y in 0..ny {
-            for x in 0..nx {
-                let inside = self.at(x, y, z) > iso;
-                if x + 1 < nx && (self.at(x + 1, y, z) > iso) != inside {
-                    xe[x + nx * y] = self.vertex(mesh, [x, y, z], [x + 1, y, z]);
+            let r = &below[nx * y..nx * (y + 1)];
+            let all = r.iter().all(|&b| b == r[0]);
+            rows[y] = match (all, r[0]) {
+                (true, 1) => Row::Out,
+                (true, _) => Row::In,
+                _ => Row::Mixed,
+            };
+            if rows[y] == Row::Mixed {
+                for x in 0..nx - 1 {
+                    if r[x] != r[x + 1] {
+                        xe[x + nx * y] = self.vertex(mesh, [x, y, z], [x + 1, y, z]);
+                    }
                 }
-                if y + 1 < ny && (self.at(x, y + 1, z) > iso) != inside {
-                    ye[x + nx * y] = self.vertex(mesh, [x, y, z], [x, y + 1, z]);
+            }
+            if y + 1 < ny {
+                let r1 = &below[nx * (y + 1)..nx * (y + 2)];
+                for x in 0..nx {
+                    if r[x] != r1[x] {
+                        ye[x + nx * y] = self.vertex(mesh, [x, y, z], [x, y + 1, z]);
+                    }
                 }
             }
         }
-        (xe, ye)
+        Plane {
+            below,
+            xe,
+            ye,
+            rows,
+        }
     }
 }
 
-/// Cells with z in [z0, z1): a rolling pair of planes of x/y-edge vertex ids, and z-edge ids.
-fn march_chunk(v: &[f32], [nx, ny, _]: [usize; 3], iso: f32, z0: usize, z1: usize) -> GridMesh {
+/// Cells with z in [z0, z1): a rolling pair of planes, and the z-edges between them. Rows of
+/// cells whose four sample rows are all inside or all outside are skipped whole.
+fn march_chunk(v: &[f32], [nx, ny, _]: [usize; 3], iso: f32, z0: usize, z1: usize) -> Chunk {
     let g = Grid { v, nx, ny, iso };
-    let at = |x: usize, y: usize, z: usize| g.at(x, y, z);
     let mut mesh = GridMesh::default();
-    let (mut xe0, mut ye0) = g.plane_edges(&mut mesh, z0);
+    let mut p0 = g.plane(&mut mesh, z0);
+    let first_plane = 0..mesh.positions.len() as u32;
+    let mut last_plane = first_plane.clone();
+    let mut ze = vec![NONE; nx * ny];
     for z in z0..z1 {
-        let (xe1, ye1) = g.plane_edges(&mut mesh, z + 1);
-        let mut ze = vec![NONE; nx * ny];
+        let start = mesh.positions.len() as u32;
+        let p1 = g.plane(&mut mesh, z + 1);
+        last_plane = start..mesh.positions.len() as u32;
         for y in 0..ny {
+            // A row without z-crossings keeps stale ids: no cell's triangles name an edge that
+            // does not cross, so they are never read.
+            if p0.rows[y] != Row::Mixed && p0.rows[y] == p1.rows[y] {
+                continue;
+            }
             for x in 0..nx {
-                if (at(x, y, z) > iso) != (at(x, y, z + 1) > iso) {
-                    ze[x + nx * y] = g.vertex(&mut mesh, [x, y, z], [x, y, z + 1]);
-                }
+                let i = x + nx * y;
+                ze[i] = if p0.below[i] != p1.below[i] {
+                    g.vertex(&mut mesh, [x, y, z], [x, y, z + 1])
+                } else {
+                    NONE
+                };
             }
         }
         for y in 0..ny - 1 {
+            let rs = [p0.rows[y], p0.rows[y + 1], p1.rows[y], p1.rows[y + 1]];
+            if rs[0] != Row::Mixed && rs.iter().all(|&r| r == rs[0]) {
+                continue;
+            }
+            let (b0, b1) = (&p0.below, &p1.below);
             for x in 0..nx - 1 {
-                let mut case = 0usize;
-                for (i, &(dx, dy, dz)) in CORNERS.iter().enumerate() {
-                    // Bourke's table sets a bit for corners below the iso-level.
-                    if at(x + dx, y + dy, z + dz) <= iso {
-                        case |= 1 << i;
-                    }
-                }
+                let i = x + nx * y;
+                let case = (b0[i]
+                    | b0[i + 1] << 1
+                    | b0[i + 1 + nx] << 2
+                    | b0[i + nx] << 3
+                    | b1[i] << 4
+                    | b1[i + 1] << 5
+                    | b1[i + 1 + nx] << 6
+                    | b1[i + nx] << 7) as usize;
                 if case == 0 || case == 255 {
                     continue;
                 }
                 let edge_id = |e: i8| -> u32 {
                     let (axis, dx, dy, dz) = EDGES[e as usize];
-                    let i = (x + dx) + nx * (y + dy);
+                    let j = i + dx + nx * dy;
                     match (axis, dz) {
-                        (0, 0) => xe0[i],
-                        (0, _) => xe1[i],
-                        (1, 0) => ye0[i],
-                        (1, _) => ye1[i],
-                        _ => ze[i],
+                        (0, 0) => p0.xe[j],
+                        (0, _) => p1.xe[j],
+                        (1, 0) => p0.ye[j],
+                        (1, _) => p1.ye[j],
+                        _ => ze[j],
                     }
                 };
                 for tri in TRI_TABLE[case].chunks(3) {
@@ -157,47 +215,55 @@ fn march_chunk(v: &[f32], [nx, ny, _]: [usize; 3], iso: f32, z0: usize, z1: usiz
                 }
             }
         }
-        xe0 = xe1;
-        ye0 = ye1;
+        p0 = p1;
     }
-    // Vertices made for edges no triangle used are dropped in `stitch`.
-    mesh
+    Chunk {
+        mesh,
+        first_plane,
+        last_plane,
+    }
 }
 
-/// Join the chunks: the vertices on a shared plane were computed from the same two samples in
-/// both chunks, so they are bit-identical and merge by exact position. Unused vertices go too.
-fn stitch(parts: Vec<(usize, GridMesh)>) -> GridMesh {
+/// Join the chunks: a chunk's first plane is the one before it's last plane, computed from the
+/// same samples in the same order, so its vertices map one to one onto those.
+fn stitch(parts: Vec<Chunk>) -> GridMesh {
     let mut out = GridMesh::default();
-    let mut seen: HashMap<[u32; 3], u32> = HashMap::new();
-    for (_, part) in parts {
-        let mut used = vec![false; part.positions.len()];
-        for t in &part.triangles {
-            for &i in t {
-                used[i as usize] = true;
+    let mut prev_last: Option<std::ops::Range<u32>> = None;
+    for part in parts {
+        let offset = out.positions.len() as u32;
+        let shared = prev_last
+            .as_ref()
+            .map(|r| (r.start, part.first_plane.len() as u32));
+        let n_first = part.first_plane.len() as u32;
+        let remap = |i: u32| -> u32 {
+            match shared {
+                // first_plane starts at 0 in every chunk
+                Some((prev_start, _)) if i < n_first => prev_start + i,
+                Some(_) => offset + i - n_first,
+                None => offset + i,
             }
-        }
-        let mut remap = vec![NONE; part.positions.len()];
-        for (i, p) in part.positions.iter().enumerate() {
-            if !used[i] {
-                continue;
-            }
-            let key = p.map(f32::to_bits);
-            remap[i] = *seen.entry(key).or_insert_with(|| {
-                out.positions.push(*p);
-                (out.positions.len() - 1) as u32
-            });
-        }
+        };
+        let skip = if shared.is_some() {
+            n_first as usize
+        } else {
+            0
+        };
+        out.positions
+            .extend_from_slice(&part.mesh.positions[skip..]);
         out.triangles
-            .extend(part.triangles.iter().map(|t| t.map(|i| remap[i as usize])));
+            .extend(part.mesh.triangles.iter().map(|t| t.map(remap)));
+        prev_last = Some(
+            remap(part.last_plane.start)
+                ..remap(part.last_plane.start) + part.last_plane.len() as u32,
+        );
     }
-    out.triangles
-        .retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
     out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::HashMap;
 
     fn sphere_grid(n: usize, r: f32) -> Vec<f32> {
         let c = (n - 1) as f32 / 2.0;

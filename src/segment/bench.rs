@@ -8,6 +8,7 @@ use super::preprocess::encoder_input;
 use super::prompt::Prompts;
 use super::sam::{Segmenter, SegmenterOptions};
 use crate::error::{Error, Result};
+pub use crate::util::bench::{git_commit, machine, Machine, Stats};
 use image::RgbImage;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -27,42 +28,6 @@ pub struct BenchOptions {
     pub out_dir: PathBuf,
     /// The venv to use or create; default `<models dir>/venvs/bench-onnxruntime-<version>`.
     pub venv: Option<PathBuf>,
-}
-
-/// Summary of a list of timings, in seconds.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Stats {
-    pub median: f64,
-    pub min: f64,
-    pub max: f64,
-    pub p25: f64,
-    pub p75: f64,
-    pub mean: f64,
-    pub runs: Vec<f64>,
-}
-
-impl Stats {
-    pub fn of(v: &[f64]) -> Stats {
-        let mut s = v.to_vec();
-        s.sort_by(f64::total_cmp);
-        let q = |p: f64| {
-            if s.is_empty() {
-                return f64::NAN;
-            }
-            let x = p * (s.len() - 1) as f64;
-            let (i, f) = (x.floor() as usize, x.fract());
-            s[i] + (s[(i + 1).min(s.len() - 1)] - s[i]) * f
-        };
-        Stats {
-            median: q(0.5),
-            min: s.first().copied().unwrap_or(f64::NAN),
-            max: s.last().copied().unwrap_or(f64::NAN),
-            p25: q(0.25),
-            p75: q(0.75),
-            mean: s.iter().sum::<f64>() / s.len().max(1) as f64,
-            runs: v.to_vec(),
-        }
-    }
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -101,87 +66,21 @@ pub struct BenchReport {
     pub chart: PathBuf,
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Machine {
-    pub cpu: String,
-    pub cores: usize,
-    pub os: String,
-}
-
-pub fn machine() -> Machine {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|s| s.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".into());
-    Machine {
-        cpu,
-        cores: std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1),
-        os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
-    }
-}
-
-fn git_commit() -> Option<String> {
-    let out = Command::new("git")
-        .args(["rev-parse", "--short=12", "HEAD"])
-        .output()
-        .ok()?;
-    out.status
-        .success()
-        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
-}
-
-/// The venv's interpreter, creating the venv (and installing onnxruntime, numpy, pillow) if it is
-/// missing or broken.
+/// The venv's interpreter, creating the venv (with onnxruntime, numpy, pillow) if it is missing
+/// or broken.
 pub fn ensure_venv(venv: &Path) -> Result<PathBuf> {
-    let py = venv.join("bin").join("python");
     let check = format!(
         "import onnxruntime, numpy; assert onnxruntime.__version__ == '{ONNXRUNTIME_VERSION}'"
     );
-    let ok = |py: &Path| {
-        Command::new(py)
-            .args(["-c", &check])
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if py.is_file() && ok(&py) {
-        return Ok(py);
-    }
-    eprintln!(
-        "setting up the benchmark's Python venv in {} ...",
-        venv.display()
-    );
-    let status = Command::new(super::models::python())
-        .args(["-m", "venv"])
-        .arg(venv)
-        .status()
-        .map_err(|e| Error::external("python3 -m venv", e.to_string()))?;
-    if !status.success() {
-        return Err(Error::external(
-            "python3 -m venv",
-            format!("failed: {status}"),
-        ));
-    }
-    let out = Command::new(&py)
-        .args(["-m", "pip", "install", "--quiet"])
-        .arg(format!("onnxruntime=={ONNXRUNTIME_VERSION}"))
-        .args(["numpy", "pillow"])
-        .output()
-        .map_err(|e| Error::external("pip install", e.to_string()))?;
-    if !out.status.success() || !ok(&py) {
-        return Err(Error::external(
-            "pip install onnxruntime numpy pillow",
-            String::from_utf8_lossy(&out.stderr).trim().to_string(),
-        ));
-    }
-    Ok(py)
+    crate::util::bench::ensure_venv(
+        venv,
+        &check,
+        &[
+            &format!("onnxruntime=={ONNXRUNTIME_VERSION}"),
+            "numpy",
+            "pillow",
+        ],
+    )
 }
 
 /// The Python side: a process that loads both sessions once and then times one run per command.
@@ -486,19 +385,4 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
         root.present()?;
     }
     Ok(svg)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn stats() {
-        let s = Stats::of(&[3.0, 1.0, 2.0, 4.0, 5.0]);
-        assert_eq!(
-            (s.median, s.min, s.max, s.p25, s.p75),
-            (3.0, 1.0, 5.0, 2.0, 4.0)
-        );
-        assert_eq!(s.mean, 3.0);
-    }
 }

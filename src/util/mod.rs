@@ -1,6 +1,7 @@
 //! Small shared helpers: atomic file output, a seeded random generator, image reading.
 
 pub mod atomic;
+pub mod bench;
 pub mod mem;
 pub mod paths;
 pub mod progress;

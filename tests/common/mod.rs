@@ -38,3 +38,25 @@ pub fn shared_model(name: &str) -> Option<PathBuf> {
 pub fn objnerf_bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_objnerf"))
 }
+
+/// Run the validator (scripts/setup installs node and the npm package) and return its report.
+pub fn validate_gltf(path: &std::path::Path) -> serde_json::Value {
+    let script = repo_root().join("tools/gltf-validator/validate.mjs");
+    if !repo_root()
+        .join("tools/gltf-validator/node_modules/gltf-validator")
+        .exists()
+    {
+        panic!("glTF-Validator is not installed: run `npm install --prefix tools/gltf-validator` (scripts/setup does)");
+    }
+    let out = std::process::Command::new("node")
+        .arg(&script)
+        .arg(path)
+        .output()
+        .expect("node runs (scripts/setup installs it)");
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "validator output is not JSON ({e}): {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    })
+}
