@@ -30,6 +30,16 @@ pub enum ModelsCmd {
         #[arg(long)]
         json: bool,
     },
+    /// Write encoder.onnx and decoder.onnx from a MobileSAM checkpoint (what `install` does
+    /// when no --onnx-dir is given).
+    Convert {
+        /// The official mobile_sam.pt (checked by sha256).
+        #[arg(long)]
+        checkpoint: PathBuf,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Show what is installed, with sizes and sha256 status.
     List {
         #[arg(long)]
@@ -66,6 +76,13 @@ impl ModelsCmd {
                         "{} is not installed ({})",
                         s.name, s.action
                     )));
+                }
+            }
+            ModelsCmd::Convert { checkpoint, out } => {
+                let (enc, dec) = (out.join("encoder.onnx"), out.join("decoder.onnx"));
+                super::convert::write_mobile_sam_onnx(&checkpoint, &enc, &dec)?;
+                for p in [&enc, &dec] {
+                    println!("{}  {}", models::sha256_file(p)?, p.display());
                 }
             }
             ModelsCmd::List { json } => {

@@ -12,6 +12,7 @@
 pub mod bench;
 pub mod cache;
 pub mod cli;
+pub mod convert;
 pub mod distance;
 pub mod hull;
 pub mod mask;
