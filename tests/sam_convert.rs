@@ -273,7 +273,7 @@ fn a_truncated_or_altered_checkpoint_is_a_clear_error() {
         sha256_file(&lib).unwrap(),
     )
     .unwrap();
-    let e = install(&md, &opts).err().expect("a wrong checkpoint");
+    let e = install(&md, &opts).expect_err("a wrong checkpoint");
     let msg = e.to_string();
     assert!(
         msg.contains("mobile_sam.pt") && msg.contains("sha256"),

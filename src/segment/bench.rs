@@ -127,7 +127,7 @@ pub fn machine() -> Machine {
     }
 }
 
-fn git_commit() -> Option<String> {
+pub(crate) fn git_commit() -> Option<String> {
     let out = Command::new("git")
         .args(["rev-parse", "--short=12", "HEAD"])
         .output()
@@ -264,7 +264,7 @@ fn read_f32(path: &Path) -> Result<Vec<f32>> {
 }
 
 /// A synthetic image (smooth colours and a disc) when no image is given.
-fn synthetic() -> RgbImage {
+pub(crate) fn synthetic() -> RgbImage {
     RgbImage::from_fn(800, 600, |x, y| {
         let d = ((x as f32 - 400.0).powi(2) + (y as f32 - 300.0).powi(2)).sqrt();
         if d < 150.0 {
@@ -415,14 +415,28 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     };
     let text = serde_json::to_string_pretty(&report).expect("report serialises");
     crate::util::atomic::write_bytes_atomic(&json, text.as_bytes())?;
-    let svg = chart_svg(&report).map_err(|e| Error::invalid(format!("chart: {e}")))?;
+    let svg = chart_svg(
+        [
+            ("encoder", &report.ours.encoder, &report.python.encoder),
+            ("decoder", &report.ours.decoder, &report.python.decoder),
+        ],
+        ["objnerf (ort crate)", "Python onnxruntime"],
+        "ours/python",
+        threads,
+    )
+    .map_err(|e| Error::invalid(format!("chart: {e}")))?;
     crate::util::atomic::write_bytes_atomic(&chart, svg.as_bytes())?;
     Ok(report)
 }
 
-/// Two panels (encoder, decoder): every timed run of both backends, in milliseconds, with the
-/// medians as dashed lines.
-fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error::Error>> {
+/// Two panels (e.g. encoder, decoder): every timed run of two contenders `names`, in
+/// milliseconds, with the medians as dashed lines; each caption gives the ratio of medians.
+pub(crate) fn chart_svg(
+    panels_data: [(&str, &Stats, &Stats); 2],
+    names: [&str; 2],
+    ratio_label: &str,
+    threads: usize,
+) -> std::result::Result<String, Box<dyn std::error::Error>> {
     use plotters::prelude::*;
     let mut svg = String::new();
     {
@@ -431,10 +445,7 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
         let panels = root.split_evenly((1, 2));
         let blue = RGBColor(31, 119, 180);
         let orange = RGBColor(255, 127, 14);
-        for (area, (title, ours, py)) in panels.iter().zip([
-            ("encoder", &r.ours.encoder, &r.python.encoder),
-            ("decoder", &r.ours.decoder, &r.python.decoder),
-        ]) {
+        for (area, (title, ours, py)) in panels.iter().zip(panels_data) {
             let ms = |v: &Vec<f64>| v.iter().map(|s| s * 1e3).collect::<Vec<_>>();
             let (o, p) = (ms(&ours.runs), ms(&py.runs));
             let hi = o.iter().chain(&p).copied().fold(0.0, f64::max) * 1.15 + 1e-6;
@@ -442,9 +453,8 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
             let mut c = ChartBuilder::on(area)
                 .caption(
                     format!(
-                        "{title}: ours/python median {:.2} ({} threads)",
+                        "{title}: {ratio_label} median {:.2} ({threads} threads)",
                         ours.median / py.median,
-                        r.threads
                     ),
                     ("sans-serif", 16),
                 )
@@ -458,8 +468,8 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
                 .disable_x_mesh()
                 .draw()?;
             for (vals, med, colour, name) in [
-                (&o, ours.median * 1e3, blue, "objnerf (ort crate)"),
-                (&p, py.median * 1e3, orange, "Python onnxruntime"),
+                (&o, ours.median * 1e3, blue, names[0]),
+                (&p, py.median * 1e3, orange, names[1]),
             ] {
                 let pts: Vec<(f64, f64)> = vals
                     .iter()

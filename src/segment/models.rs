@@ -471,7 +471,7 @@ fn copy_atomic(src: &Path, dest: &Path) -> Result<()> {
 }
 
 /// Temporary files are created 0600; installed models are meant to be shared (0644).
-fn readable(path: &Path) -> Result<()> {
+pub(crate) fn readable(path: &Path) -> Result<()> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;

@@ -5,7 +5,7 @@
 //! points.
 
 use super::encoder::Weights;
-use super::graph::{Attr, Dim, Graph};
+use super::graph::{Attr, Conv, Dim, Graph};
 use super::onnx_proto::{ModelProto, FLOAT};
 use super::torch::{StateDict, Tensor};
 use crate::error::Result;
@@ -96,7 +96,12 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
         let conv = |g: &mut Graph, x: &str, i: usize, cin: usize, cout: usize, k: usize| {
             let w = pe_w.get(&format!("{p}.{i}.weight"), &[cout, cin, k, k])?;
             let b = pe_w.vec(&format!("{p}.{i}.bias"), cout)?;
-            Ok::<_, crate::Error>(g.conv(x, &format!("{p}.{i}"), w, Some(b), k as i64, 0, 1))
+            let spec = Conv {
+                stride: k as i64,
+                pad: 0,
+                groups: 1,
+            };
+            Ok::<_, crate::Error>(g.conv(x, &format!("{p}.{i}"), w, Some(b), spec))
         };
         let ln = |g: &mut Graph, x: &str, i: usize, c: usize| {
             let w = pe_w.vec(&format!("{p}.{i}.weight"), c)?;

@@ -3,7 +3,7 @@
 //! Mirrors `mobile_sam/modeling/tiny_vit_sam.py` (mobilesam-mirror 1.0.0) layer by layer;
 //! BatchNorms are folded into the convolutions before them, as the PyTorch exporter does.
 
-use super::graph::{Attr, Dim, Graph};
+use super::graph::{Attr, Conv, Dim, Graph};
 use super::onnx_proto::{ModelProto, FLOAT};
 use super::torch::{StateDict, Tensor};
 use crate::error::Result;
@@ -20,6 +20,17 @@ const MLP_RATIO: usize = 4;
 const MBCONV_EXPAND: usize = 4;
 /// `nn.BatchNorm2d` and `nn.LayerNorm` defaults.
 const BN_EPS: f32 = 1e-5;
+/// The neck's convolutions: 1x1, and 3x3 keeping the size.
+const PLAIN: Conv = Conv {
+    stride: 1,
+    pad: 0,
+    groups: 1,
+};
+const SAME: Conv = Conv {
+    stride: 1,
+    pad: 1,
+    groups: 1,
+};
 const LN_EPS: f32 = 1e-5;
 
 pub fn build(sd: &StateDict) -> Result<ModelProto> {
@@ -90,9 +101,7 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
                 "neck.0",
                 w.get("neck.0.weight", &[256, 320, 1, 1])?,
                 None,
-                1,
-                0,
-                1,
+                PLAIN,
             );
             let x = layer_norm_2d(g, &w, &x, "neck.1", 256)?;
             let x = g.conv(
@@ -100,9 +109,7 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
                 "neck.2",
                 w.get("neck.2.weight", &[256, 256, 3, 3])?,
                 None,
-                1,
-                1,
-                1,
+                SAME,
             );
             layer_norm_2d(g, &w, &x, "neck.3", 256)
         })
@@ -172,7 +179,17 @@ fn conv_bn(
     let groups = if cin_per_group == 1 { cout as i64 } else { 1 };
     let fused = Tensor::new(conv.shape.clone(), wd);
     let bias = Tensor::new(vec![cout], bd);
-    Ok(g.conv(x, name, &fused, Some(&bias), stride, pad, groups))
+    Ok(g.conv(
+        x,
+        name,
+        &fused,
+        Some(&bias),
+        Conv {
+            stride,
+            pad,
+            groups,
+        },
+    ))
 }
 
 fn layer_norm_2d(g: &mut Graph, w: &Weights, x: &str, name: &str, c: usize) -> Result<String> {

@@ -19,6 +19,14 @@ pub enum Attr {
     Str(&'static str),
 }
 
+/// A convolution's stride, padding (all sides) and groups.
+#[derive(Clone, Copy)]
+pub struct Conv {
+    pub stride: i64,
+    pub pad: i64,
+    pub groups: i64,
+}
+
 /// A tensor dimension of a graph input or output.
 #[derive(Clone)]
 pub enum Dim {
@@ -262,9 +270,11 @@ impl Graph {
         name: &str,
         w: &Tensor,
         b: Option<&Tensor>,
-        stride: i64,
-        pad: i64,
-        groups: i64,
+        Conv {
+            stride,
+            pad,
+            groups,
+        }: Conv,
     ) -> String {
         let k = w.shape[2] as i64;
         let wn = self.weight(&format!("{name}.weight"), w);

@@ -14,7 +14,7 @@ pub mod onnx_proto;
 pub mod pickle;
 pub mod torch;
 
-use super::models::{sha256_file, CHECKPOINT_SHA256};
+use super::models::{readable, sha256_file, CHECKPOINT_SHA256};
 use crate::error::{Error, Result};
 use prost::Message;
 use std::path::Path;
@@ -38,8 +38,11 @@ pub fn mobile_sam_onnx(checkpoint: &Path) -> Result<SamOnnx> {
 /// [`mobile_sam_onnx`], written atomically to the two paths.
 pub fn write_mobile_sam_onnx(checkpoint: &Path, encoder: &Path, decoder: &Path) -> Result<()> {
     let m = mobile_sam_onnx(checkpoint)?;
-    crate::util::atomic::write_bytes_atomic(encoder, &m.encoder)?;
-    crate::util::atomic::write_bytes_atomic(decoder, &m.decoder)
+    for (path, bytes) in [(encoder, &m.encoder), (decoder, &m.decoder)] {
+        crate::util::atomic::write_bytes_atomic(path, bytes)?;
+        readable(path)?;
+    }
+    Ok(())
 }
 
 /// The graphs are written for this one checkpoint: anything else (a truncated download, another
