@@ -73,8 +73,10 @@ pub struct BackendTimes {
     pub decoder: Stats,
 }
 
+/// What a benchmark report says about its run: the command, machine, commit, runtime, threads,
+/// images and number of runs.
 #[derive(Clone, Debug, serde::Serialize)]
-pub struct BenchReport {
+pub struct RunInfo {
     pub command: String,
     pub machine: Machine,
     pub git_commit: Option<String>,
@@ -82,6 +84,26 @@ pub struct BenchReport {
     pub threads: usize,
     pub images: Vec<String>,
     pub runs: usize,
+}
+
+impl RunInfo {
+    pub fn new(threads: usize, images: Vec<String>, runs: usize) -> Self {
+        RunInfo {
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+            machine: machine(),
+            git_commit: git_commit(),
+            onnxruntime_version: ONNXRUNTIME_VERSION.into(),
+            threads,
+            images,
+            runs,
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchReport {
+    #[serde(flatten)]
+    pub run: RunInfo,
     pub ours: BackendTimes,
     pub python: BackendTimes,
     /// ours / Python, medians.
@@ -127,7 +149,7 @@ pub fn machine() -> Machine {
     }
 }
 
-pub(crate) fn git_commit() -> Option<String> {
+fn git_commit() -> Option<String> {
     let out = Command::new("git")
         .args(["rev-parse", "--short=12", "HEAD"])
         .output()
@@ -263,8 +285,23 @@ fn read_f32(path: &Path) -> Result<Vec<f32>> {
         .collect())
 }
 
-/// A synthetic image (smooth colours and a disc) when no image is given.
-pub(crate) fn synthetic() -> RgbImage {
+/// The images to time and their names; a synthetic image when none is given.
+pub(crate) fn bench_images(paths: &[PathBuf]) -> Result<(Vec<RgbImage>, Vec<String>)> {
+    let mut images = Vec::new();
+    let mut names = Vec::new();
+    for p in paths {
+        images.push(super::view::load_rgb(p)?);
+        names.push(p.display().to_string());
+    }
+    if images.is_empty() {
+        images.push(synthetic());
+        names.push("synthetic 800x600".into());
+    }
+    Ok((images, names))
+}
+
+/// A synthetic image (smooth colours and a disc).
+fn synthetic() -> RgbImage {
     RgbImage::from_fn(800, 600, |x, y| {
         let d = ((x as f32 - 400.0).powi(2) + (y as f32 - 300.0).powi(2)).sqrt();
         if d < 150.0 {
@@ -286,16 +323,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     let seg = Segmenter::from_files(&lib, &enc, &dec, &so)?;
     let threads = seg.threads();
 
-    let mut images = Vec::new();
-    let mut names = Vec::new();
-    for p in &opts.images {
-        images.push(super::view::load_rgb(p)?);
-        names.push(p.display().to_string());
-    }
-    if images.is_empty() {
-        images.push(synthetic());
-        names.push("synthetic 800x600".into());
-    }
+    let (images, names) = bench_images(&opts.images)?;
 
     // Both backends get the same prepared tensors; the prompt is one click at the image centre.
     let work = tempfile::Builder::new()
@@ -395,13 +423,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     let json = opts.out_dir.join("bench_sam.json");
     let chart = opts.out_dir.join("bench_sam.svg");
     let report = BenchReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-        machine: machine(),
-        git_commit: git_commit(),
-        onnxruntime_version: ONNXRUNTIME_VERSION.into(),
-        threads,
-        images: names,
-        runs,
+        run: RunInfo::new(threads, names, runs),
         encoder_ratio,
         decoder_ratio: ours.decoder.median / python.decoder.median,
         encoder_paired_ratio: Stats::of(&paired).median,

@@ -3,8 +3,8 @@
 //! same threads, on the same prepared inputs, interleaved run by run (who goes first alternates)
 //! so that load from other work on the machine hits both alike. Writes JSON and an SVG chart.
 
-use super::bench::{chart_svg, git_commit, machine, synthetic, Machine, Stats};
-use super::models::{ModelsDir, ONNXRUNTIME_VERSION};
+use super::bench::{bench_images, chart_svg, RunInfo, Stats};
+use super::models::ModelsDir;
 use super::preprocess::encoder_input;
 use super::prompt::Prompts;
 use super::sam::{Segmenter, SegmenterOptions};
@@ -37,13 +37,8 @@ pub struct ModelTimes {
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ConvertBenchReport {
-    pub command: String,
-    pub machine: Machine,
-    pub git_commit: Option<String>,
-    pub onnxruntime_version: String,
-    pub threads: usize,
-    pub images: Vec<String>,
-    pub runs: usize,
+    #[serde(flatten)]
+    pub run: RunInfo,
     /// Reading the checkpoint and writing both graphs.
     pub convert_seconds: f64,
     pub converted: ModelTimes,
@@ -90,16 +85,7 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
     let ours = Segmenter::from_files(&lib, &enc, &dec, &so)?;
     let theirs = Segmenter::from_files(&lib, &ref_enc, &ref_dec, &so)?;
 
-    let mut images = Vec::new();
-    let mut names = Vec::new();
-    for p in &opts.images {
-        images.push(super::view::load_rgb(p)?);
-        names.push(p.display().to_string());
-    }
-    if images.is_empty() {
-        images.push(synthetic());
-        names.push("synthetic 800x600".into());
-    }
+    let (images, names) = bench_images(&opts.images)?;
     let inputs: Vec<Vec<f32>> = images.iter().map(|i| encoder_input(i).0).collect();
     // Both decoders get the reference's embedding and one click at the image centre.
     let mut embs = Vec::new();
@@ -156,13 +142,7 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
     let json = opts.out_dir.join("bench_sam_convert.json");
     let chart = opts.out_dir.join("bench_sam_convert.svg");
     let report = ConvertBenchReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-        machine: machine(),
-        git_commit: git_commit(),
-        onnxruntime_version: ONNXRUNTIME_VERSION.into(),
-        threads: ours.threads(),
-        images: names,
-        runs,
+        run: RunInfo::new(ours.threads(), names, runs),
         convert_seconds,
         encoder_ratio,
         decoder_ratio: converted.decoder.median / reference.decoder.median,
@@ -192,7 +172,7 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
         ],
         ["objnerf's ONNX", "torch.onnx export"],
         "ours/export",
-        report.threads,
+        report.run.threads,
     )
     .map_err(|e| Error::invalid(format!("chart: {e}")))?;
     crate::util::atomic::write_bytes_atomic(&chart, svg.as_bytes())?;

@@ -167,18 +167,8 @@ impl SegmentViewCmd {
 pub enum BenchSamCmd {
     /// SAM encoder and decoder: objnerf against Python onnxruntime, interleaved in one run.
     Sam {
-        /// Images to encode (repeatable); default a synthetic image.
-        #[arg(long = "image")]
-        images: Vec<PathBuf>,
-        /// Timed runs per backend (at least 5).
-        #[arg(long, default_value_t = 7)]
-        runs: usize,
-        /// Threads for both backends (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Where bench_sam.json and bench_sam.svg go.
-        #[arg(long, default_value = "runs/bench")]
-        out_dir: PathBuf,
+        #[command(flatten)]
+        common: BenchArgs,
         /// The Python venv to use or create.
         #[arg(long)]
         venv: Option<PathBuf>,
@@ -189,38 +179,47 @@ pub enum BenchSamCmd {
         /// Folder with the reference encoder.onnx and decoder.onnx.
         #[arg(long, default_value = "../shared/models/mobile_sam")]
         reference: PathBuf,
-        /// Images to encode (repeatable); default a synthetic image.
-        #[arg(long = "image")]
-        images: Vec<PathBuf>,
-        /// Timed runs per model (at least 5).
-        #[arg(long, default_value_t = 7)]
-        runs: usize,
-        /// Threads for both (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Where bench_sam_convert.json and bench_sam_convert.svg go.
-        #[arg(long, default_value = "runs/bench")]
-        out_dir: PathBuf,
+        #[command(flatten)]
+        common: BenchArgs,
     },
+}
+
+/// What both SAM benchmarks take.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Images to encode (repeatable); default a synthetic image.
+    #[arg(long = "image")]
+    images: Vec<PathBuf>,
+    /// Timed runs per side (at least 5).
+    #[arg(long, default_value_t = 7)]
+    runs: usize,
+    /// Threads for both sides (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Where the JSON and the SVG chart go.
+    #[arg(long, default_value = "runs/bench")]
+    out_dir: PathBuf,
 }
 
 impl BenchSamCmd {
     pub fn run(self) -> Result<()> {
-        let (images, runs, threads, out_dir, venv) = match self {
-            BenchSamCmd::Sam {
+        let (
+            BenchArgs {
                 images,
                 runs,
                 threads,
                 out_dir,
-                venv,
-            } => (images, runs, threads, out_dir, venv),
-            BenchSamCmd::SamConvert {
-                reference,
-                images,
-                runs,
-                threads,
-                out_dir,
-            } => {
+            },
+            venv,
+        ) = match self {
+            BenchSamCmd::Sam { common, venv } => (common, venv),
+            BenchSamCmd::SamConvert { reference, common } => {
+                let BenchArgs {
+                    images,
+                    runs,
+                    threads,
+                    out_dir,
+                } = common;
                 let opts = super::bench_convert::ConvertBenchOptions {
                     reference,
                     images,
