@@ -161,7 +161,7 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
         two_way_transformer(g, &md, &tokens, &src, &image_pe)
     })?;
 
-    let masks_all = g.scope("heads", |g| -> Result<(String, String)> {
+    let (masks, iou) = g.scope("heads", |g| -> Result<(String, String)> {
         let iou_out = gather(g, &hs, 0);
         let (s, e, a) = (
             g.i64s(&[1]),
@@ -196,7 +196,6 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
         let iou = mlp(g, &md, &iou_out, "iou_prediction_head", MASK_TOKENS)?;
         Ok((m, iou))
     })?;
-    let (masks, iou) = masks_all;
 
     // One mask: with one point (or a box alone) the best of masks 1-3 by predicted IoU, else
     // mask 0 (the reweighting trick of SamOnnxModel.select_masks).

@@ -39,16 +39,7 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
         sd,
         prefix: "image_encoder.",
     };
-    let image = g.input(
-        "image",
-        FLOAT,
-        &[
-            Dim::Fixed(1),
-            Dim::Fixed(3),
-            Dim::Fixed(1024),
-            Dim::Fixed(1024),
-        ],
-    );
+    let image = g.input("image", FLOAT, &[1, 3, 1024, 1024].map(Dim::Fixed));
     let out = g.scope("enc", |g| -> Result<String> {
         // Patch embedding: two stride-2 convolutions, 1024 -> 256.
         let x = g.scope("patch_embed", |g| -> Result<String> {
@@ -114,17 +105,11 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
             layer_norm_2d(g, &w, &x, "neck.3", 256)
         })
     })?;
-    let dims = [256, 64, 64].map(Dim::Fixed);
     g.output(
         &out,
         "image_embeddings",
         FLOAT,
-        &[
-            Dim::Fixed(1),
-            dims[0].clone(),
-            dims[1].clone(),
-            dims[2].clone(),
-        ],
+        &[1, 256, 64, 64].map(Dim::Fixed),
     );
     Ok(g.into_model(
         "mobile_sam_encoder",
