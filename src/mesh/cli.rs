@@ -26,6 +26,9 @@ pub struct MeshCmd {
     /// Drop pieces with fewer triangles than this fraction of the largest (0 keeps all).
     #[arg(long, default_value_t = 0.05)]
     pub min_component: f64,
+    /// Keep empty space enclosed by the surface (default: filled, the outer surface of a solid).
+    #[arg(long)]
+    pub keep_cavities: bool,
     /// The capture's up axis (+x, -x, +y, -y, +z, -z) or 'auto' (from the training scene's cameras).
     #[arg(long, default_value = "auto")]
     pub up: String,
@@ -140,6 +143,7 @@ impl MeshCmd {
             resolution: self.resolution,
             iso_alpha: self.iso,
             min_component: self.min_component,
+            fill_cavities: !self.keep_cavities,
         };
         let (_, out) = mesh_model(&self.model, &self.out, &name, &opts, up)?;
         let r = &out.mesh;

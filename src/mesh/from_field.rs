@@ -24,6 +24,8 @@ pub struct FieldMeshOptions {
     pub iso_alpha: f32,
     /// Drop connected pieces with fewer triangles than this fraction of the largest (0 keeps all).
     pub min_component: f64,
+    /// Fill empty space that cannot be reached from outside the object (see [`fill_cavities`]).
+    pub fill_cavities: bool,
 }
 
 impl Default for FieldMeshOptions {
@@ -32,6 +34,7 @@ impl Default for FieldMeshOptions {
             resolution: None,
             iso_alpha: 0.5,
             min_component: 0.05,
+            fill_cavities: true,
         }
     }
 }
@@ -43,6 +46,8 @@ pub struct FieldMeshReport {
     pub iso_alpha: f32,
     pub iso_raw: f32,
     pub pieces_removed: usize,
+    /// Empty samples enclosed by the surface, made solid.
+    pub cavity_samples_filled: usize,
     pub vertices: usize,
     pub triangles: usize,
 }
@@ -185,6 +190,11 @@ pub fn mesh_field(
             opts.iso_alpha
         )));
     }
+    let cavity_samples_filled = if opts.fill_cavities {
+        fill_cavities(&mut values, dims, iso)
+    } else {
+        0
+    };
     let grid = marching_cubes(&values, dims, iso);
     let mut mesh = Mesh::from_grid(name, grid, origin.as_dvec3(), DVec3::splat(spacing as f64));
     let pieces_removed = if opts.min_component > 0.0 {
@@ -204,8 +214,100 @@ pub fn mesh_field(
         iso_alpha: opts.iso_alpha,
         iso_raw: iso,
         pieces_removed,
+        cavity_samples_filled,
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
     };
     Ok((mesh, report))
+}
+
+/// Make empty samples that no path of empty samples connects to the grid's border solid.
+///
+/// A field trained on an object's views is a shell: its inside is never seen, so density there
+/// stays near its initial value and marching cubes finds a second, inner surface a shell's
+/// thickness under the real one (demo sphere: median vertex 8 mm inside a 140 mm radius). Users
+/// want the outer surface of a solid; openings such as a mug's cup connect to the border and stay
+/// empty. Returns the number of samples filled.
+pub fn fill_cavities(values: &mut [f32], [nx, ny, nz]: [usize; 3], iso: f32) -> usize {
+    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+    let mut outside = vec![false; values.len()];
+    let mut stack = Vec::new();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let border =
+                    x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1;
+                let i = idx(x, y, z);
+                if border && values[i] <= iso {
+                    outside[i] = true;
+                    stack.push(i);
+                }
+            }
+        }
+    }
+    while let Some(i) = stack.pop() {
+        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+        let mut visit = |j: usize| {
+            if !outside[j] && values[j] <= iso {
+                outside[j] = true;
+                stack.push(j);
+            }
+        };
+        if x > 0 {
+            visit(i - 1);
+        }
+        if x + 1 < nx {
+            visit(i + 1);
+        }
+        if y > 0 {
+            visit(i - nx);
+        }
+        if y + 1 < ny {
+            visit(i + nx);
+        }
+        if z > 0 {
+            visit(i - nx * ny);
+        }
+        if z + 1 < nz {
+            visit(i + nx * ny);
+        }
+    }
+    let mut filled = 0;
+    for (v, out) in values.iter_mut().zip(&outside) {
+        if !out && *v <= iso {
+            *v = iso + 1.0;
+            filled += 1;
+        }
+    }
+    filled
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_hollow_shell_becomes_solid_and_an_open_cup_stays_open() {
+        let n = 12;
+        let idx = |x: usize, y: usize, z: usize| x + n * (y + n * z);
+        // A closed box shell (walls at 2 and 9): the 6^3 inside is a cavity.
+        let mut v = vec![0.0f32; n * n * n];
+        for z in 2..=9 {
+            for y in 2..=9 {
+                for x in 2..=9 {
+                    let wall = [x, y, z].iter().any(|&c| c == 2 || c == 9);
+                    v[idx(x, y, z)] = if wall { 1.0 } else { 0.0 };
+                }
+            }
+        }
+        let mut closed = v.clone();
+        assert_eq!(fill_cavities(&mut closed, [n, n, n], 0.5), 6 * 6 * 6);
+        // Open the top: the inside now connects to the border.
+        for y in 3..=8 {
+            for x in 3..=8 {
+                v[idx(x, y, 9)] = 0.0;
+            }
+        }
+        assert_eq!(fill_cavities(&mut v, [n, n, n], 0.5), 0);
+    }
 }
