@@ -73,6 +73,7 @@ pub mod commands;
 pub mod depth;
 pub mod eval;
 pub mod grid;
+pub mod holdout;
 pub mod io;
 pub mod model;
 pub mod rays;
