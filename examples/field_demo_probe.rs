@@ -38,6 +38,9 @@ fn main() -> objnerf::Result<()> {
     if let Some(v) = env("DW") {
         cfg.depth_weight = v;
     }
+    if let Some(v) = env("DIST") {
+        cfg.distortion_weight = v;
+    }
     if let Some(v) = env("AW") {
         cfg.alpha_weight = v;
     }

@@ -10,7 +10,7 @@
 use super::grid::Grid;
 use super::model::Field;
 use super::rays::{RaySet, View};
-use super::render::{backward, forward, RenderOptions, Sample};
+use super::render::{backward, distortion, forward, RenderOptions, Sample};
 use crate::util::Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -42,6 +42,8 @@ pub struct TrainConfig {
     /// and how many rays with a depth target are added to each batch.
     pub depth_weight: f32,
     pub depth_batch: usize,
+    /// Weight of the distortion loss ([`distortion`], distances in finest voxels) per ray.
+    pub distortion_weight: f32,
     /// Coarse-to-fine: (fraction of `steps`, grid scale per axis), scales rising to 1.
     pub stages: Vec<(f32, f32)>,
     /// Re-derive the occupancy grid every this many steps.
@@ -63,8 +65,9 @@ impl Default for TrainConfig {
             tv_density: 0.0,
             tv_color: 0.0,
             alpha_weight: 0.1,
-            depth_weight: 0.1,
+            depth_weight: 0.001,
             depth_batch: 1024,
+            distortion_weight: 0.0,
             stages: vec![(0.0, 0.5), (0.3, 1.0)],
             prune_every: 100,
             // Training samples every voxel; rendering and evaluation every half voxel. Measured
@@ -305,6 +308,8 @@ impl Trainer {
         let stride = ch + 4;
         let inv_b = 1.0 / picks.len() as f32;
         let inv_voxel = 1.0 / field.config.base_voxel;
+        let unit = field.config.base_voxel;
+        let delta = cfg.render.step * field.voxel / field.config.base_voxel;
         let stats: Vec<(f64, f64, usize)> = self
             .records
             .par_iter_mut()
@@ -314,6 +319,7 @@ impl Trainer {
                 rec.resize_with(nslabs, Vec::new);
                 rec.iter_mut().for_each(|r| r.clear());
                 let mut samples: Vec<Sample> = Vec::with_capacity(512);
+                let mut g_w: Vec<f32> = Vec::new();
                 let (mut loss, mut mse, mut nsamp) = (0f64, 0f64, 0usize);
                 for (ri, &(vi, px)) in chunk.iter().enumerate() {
                     let mut r = Rng::fork(
@@ -357,15 +363,33 @@ impl Trainer {
                     if samples.is_empty() {
                         continue;
                     }
-                    backward(field, &cfg.render, d, bg, &samples, g, ga, gd, |s, gr| {
-                        let z = s.base as usize / plane;
-                        let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
-                        for b in &mut rec[sa..=sb] {
-                            b.push(f32::from_bits(s.base));
-                            b.extend_from_slice(&s.frac);
-                            b.extend_from_slice(gr);
-                        }
-                    });
+                    g_w.clear();
+                    if cfg.distortion_weight > 0.0 {
+                        let l = distortion(&samples, unit, delta, &mut g_w);
+                        loss += (cfg.distortion_weight * l) as f64;
+                        let k = cfg.distortion_weight * inv_b;
+                        g_w.iter_mut().for_each(|g| *g *= k);
+                    }
+                    backward(
+                        field,
+                        &cfg.render,
+                        d,
+                        bg,
+                        &samples,
+                        g,
+                        ga,
+                        gd,
+                        &g_w,
+                        |s, gr| {
+                            let z = s.base as usize / plane;
+                            let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
+                            for b in &mut rec[sa..=sb] {
+                                b.push(f32::from_bits(s.base));
+                                b.extend_from_slice(&s.frac);
+                                b.extend_from_slice(gr);
+                            }
+                        },
+                    );
                 }
                 (loss, mse, nsamp)
             })
