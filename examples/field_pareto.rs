@@ -25,6 +25,12 @@ const LEGO: &[(&str, u32, f64, f32)] = &[
 const DEMO_OBJECTS: &[&str] = &["mug", "sphere", "box", "torus"];
 const DEMO_BUDGETS: &[f64] = &[40.0];
 
+/// The 1-minute load average (Linux), to say how shared the machine was.
+fn loadavg() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/loadavg").ok()?;
+    s.split_whitespace().next()?.parse().ok()
+}
+
 fn arg(args: &[String], name: &str) -> Option<String> {
     let i = args.iter().position(|a| a == name)?;
     args.get(i + 1).cloned()
@@ -69,6 +75,7 @@ fn main() {
         }
     };
     let start = std::time::Instant::now();
+    let load_before = loadavg();
     let mut lego_runs = Vec::new();
     if lego.exists() {
         for &(label, ds, secs, vpp) in LEGO {
@@ -118,6 +125,7 @@ fn main() {
         "machine": "2 cores, 24 GiB, no GPU, shared with other agents' builds and benchmarks (load average 4-11 during the run): wall-clock figures are pessimistic; cpu seconds are recorded per run",
         "command": args.join(" "),
         "total_s": start.elapsed().as_secs_f64(),
+        "load_average_before_after": [load_before, loadavg()],
         "lego": lego_runs,
         "demo": demo_runs,
     });
