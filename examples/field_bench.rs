@@ -3,6 +3,10 @@
 //! to `--json PATH` if given).
 //!
 //! cargo run --release --example field_bench -- DATA_DIR DOWNSCALE SECONDS [SH_DEGREE] [STEPS]
+//! cargo run --release --example field_bench -- demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]
+//!
+//! `examples/field_pareto.rs` runs a sweep of these (one process each, for peak RSS) and draws
+//! the chart.
 //!
 //! Environment overrides for sweeps: FIELD_BATCH, FIELD_STEP (sample spacing in voxels),
 //! FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and grid scale), FIELD_PRUNE (steps
@@ -34,8 +38,47 @@ fn cpu_seconds() -> f64 {
     ticks / 100.0
 }
 
+/// `demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]`: one demo object from its true masks,
+/// scored on the held-out views (`field::holdout::demo_object`).
+fn demo(args: &[String]) -> objnerf::Result<()> {
+    use objnerf::field::holdout::{demo_object, DemoRun};
+    let dir = PathBuf::from(&args[2]);
+    let object = &args[3];
+    let secs: f64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(30.0);
+    let depth = args
+        .get(5)
+        .map(|s| s.parse().map_err(objnerf::Error::invalid))
+        .transpose()?
+        .unwrap_or(field::commands::DepthMode::None);
+    let cpu0 = cpu_seconds();
+    let r = demo_object(
+        &dir,
+        object,
+        &DemoRun {
+            depth,
+            stop: StopRule {
+                time_budget: Some(secs),
+                plateau_db: None,
+                window: 100,
+            },
+            ..Default::default()
+        },
+    )?;
+    let out = serde_json::json!({
+        "command": args.join(" "), "git_commit": objnerf::util::bench::git_commit(),
+        "threads": rayon::current_num_threads(), "budget_s": secs,
+        "depth_supervision": format!("{depth:?}"), "cpu_s": cpu_seconds() - cpu0,
+        "peak_rss_mib": objnerf::util::mem::peak_rss_mib(), "report": r,
+    });
+    println!("{out}");
+    Ok(())
+}
+
 fn main() -> objnerf::Result<()> {
     let args: Vec<String> = std::env::args().collect();
+    if args.get(1).map(String::as_str) == Some("demo") {
+        return demo(&args);
+    }
     let dir = PathBuf::from(
         args.get(1)
             .map(String::as_str)
@@ -114,11 +157,7 @@ fn main() -> objnerf::Result<()> {
         &field::RenderOptions::default(),
         &test_views,
     );
-    let commit = std::process::Command::new("git")
-        .args(["rev-parse", "--short", "HEAD"])
-        .output()
-        .ok()
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    let commit = objnerf::util::bench::git_commit();
     let out = serde_json::json!({
         "command": args.join(" "),
         "git_commit": commit,
@@ -131,7 +170,7 @@ fn main() -> objnerf::Result<()> {
         "dims": trainer.field.grid.dims,
         "occupied_cells": trainer.field.occupied_cells(),
         "phase_secs": trainer.phase_secs,
-        "memory_mb": trainer.memory_bytes() as f64 / 1048576.0,
+        "memory_mb": trainer.memory_bytes() as f64 / 1048576.0, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
     });
     println!("{out}");

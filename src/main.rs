@@ -290,7 +290,7 @@ fn run(cli: Cli) -> Result<()> {
             bar.finish();
             if let Some(s) = &report.setup {
                 eprintln!(
-                    "box {:?}..{:?}; grid {:?} ({} vertices): {}",
+                    "box {:?}..{:?} (the masks' visual hull); grid {:?} ({} vertices) because {}",
                     s.box_min, s.box_max, s.final_dims, s.final_vertices, s.why
                 );
                 eprintln!(

@@ -295,7 +295,7 @@ fn dense_depth_supervision_reduces_depth_error() {
         median_depth_error(&t, &held_out)
     };
     let without = run(0.0);
-    let with = run(0.5);
+    let with = run(TrainConfig::default().depth_weight);
     eprintln!("sphere, 4 views: median depth error {without:.4} without depth, {with:.4} with dense depth (radius 0.5)");
     assert!(with < 0.8 * without, "with {with} vs without {without}");
 }

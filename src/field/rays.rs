@@ -334,12 +334,15 @@ pub fn choose_voxel(
     budget: usize,
 ) -> (f32, String) {
     let mid = 0.5 * (lo + hi);
-    let mut foot: Vec<f32> = views
+    let mut foot: Vec<(f32, f32, f32)> = views
         .iter()
-        .map(|v| (v.center - mid).length() / v.intr[0].max(v.intr[1]))
+        .map(|v| {
+            let (dist, focal) = ((v.center - mid).length(), v.intr[0].max(v.intr[1]));
+            (dist / focal, dist, focal)
+        })
         .collect();
-    foot.sort_by(|a, b| a.total_cmp(b));
-    let median = foot[foot.len() / 2];
+    foot.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (median, dist, focal) = foot[foot.len() / 2];
     let mut voxel = median / per_pixel;
     let e = hi - lo;
     let count = |vx: f32| -> usize {
@@ -349,7 +352,7 @@ pub fn choose_voxel(
             .product()
     };
     let mut why = format!(
-        "pixel footprint at the median distance {median:.5} world units -> voxel {voxel:.5}"
+        "one pixel at the median camera distance {dist:.3} (focal {focal:.0} px) covers {median:.5} world units; {per_pixel} voxel(s) per pixel -> voxel {voxel:.5}"
     );
     let want = count(voxel) * bytes_per_vertex;
     if want > budget {

@@ -182,9 +182,11 @@ pub fn forward(
     out
 }
 
-/// Backward of [`forward`] for upstream gradients `g_rgb` (dL/dC), `g_alpha` (dL/dA) and
-/// `g_depth` (dL/d depth). For each kept sample, `emit(sample, grad)` receives the gradient of the
-/// loss with respect to the interpolated channels [raw density, SH coefficients].
+/// Backward of [`forward`] for upstream gradients `g_rgb` (dL/dC), `g_alpha` (dL/dA),
+/// `g_depth` (dL/d depth) and, if not empty, `g_weights` (dL/dw_i for each sample's weight
+/// w_i = T_i a_i, e.g. from [`distortion`]). For each kept sample, `emit(sample, grad)` receives
+/// the gradient of the loss with respect to the interpolated channels [raw density, SH
+/// coefficients].
 #[allow(clippy::too_many_arguments)]
 pub fn backward(
     f: &Field,
@@ -195,6 +197,7 @@ pub fn backward(
     g_rgb: [f32; 3],
     g_alpha: f32,
     g_depth: f32,
+    g_weights: &[f32],
     mut emit: impl FnMut(&Sample, &[f32]),
 ) {
     let k = f.sh_k();
@@ -207,13 +210,15 @@ pub fn backward(
     let mut r_a = 0.0f32;
     let mut r_d = 0.0f32;
     let mut grad = [0f32; 28];
-    for s in samples.iter().rev() {
+    for (i, s) in samples.iter().enumerate().rev() {
         let w = s.trans * s.alpha;
+        // Everything linear in the weights as one value per sample: depth (t) and g_weights.
+        let value = g_depth * s.t + g_weights.get(i).copied().unwrap_or(0.0);
         let mut g_a = 0.0;
         for c in 0..3 {
             g_a += g_rgb[c] * (s.rgb[c] - r_rgb[c]);
         }
-        g_a += g_alpha * (1.0 - r_a) + g_depth * (s.t - r_d);
+        g_a += g_alpha * (1.0 - r_a) + (value - r_d);
         g_a *= s.trans;
         // d alpha / d raw = (1 - alpha) * delta * sigmoid(raw)
         grad[0] = g_a * (1.0 - s.alpha) * delta * s.dsp;
@@ -228,8 +233,40 @@ pub fn backward(
             r_rgb[c] = s.alpha * s.rgb[c] + (1.0 - s.alpha) * r_rgb[c];
         }
         r_a = s.alpha + (1.0 - s.alpha) * r_a;
-        r_d = s.alpha * s.t + (1.0 - s.alpha) * r_d;
+        r_d = s.alpha * value + (1.0 - s.alpha) * r_d;
     }
+}
+
+/// Mip-NeRF 360's distortion loss over a ray's kept samples, with distances in `unit` world
+/// lengths and each sample spanning `delta` units: L = sum_ij w_i w_j |s_i - s_j| +
+/// sum_i w_i^2 delta / 3. It is small when the weight sits in one short interval, so it pulls a
+/// surface's weight together where colour alone leaves it spread (uniformly coloured parts of an
+/// object, seen from few directions). Writes dL/dw_i into `g_w` and returns L.
+pub fn distortion(samples: &[Sample], unit: f32, delta: f32, g_w: &mut Vec<f32>) -> f32 {
+    g_w.clear();
+    let inv = 1.0 / unit;
+    let (mut w_all, mut ws_all) = (0f32, 0f32);
+    for s in samples {
+        let w = s.trans * s.alpha;
+        w_all += w;
+        ws_all += w * s.t * inv;
+    }
+    // Prefix sums of w and w s before the current sample: sum_j w_j |s_i - s_j| =
+    // s_i W_before - S_before + (S_after - s_i W_after).
+    let (mut w_before, mut ws_before) = (0f32, 0f32);
+    let mut loss = 0f32;
+    for s in samples {
+        let w = s.trans * s.alpha;
+        let si = s.t * inv;
+        let w_after = w_all - w_before - w;
+        let ws_after = ws_all - ws_before - w * si;
+        let spread = si * w_before - ws_before + ws_after - si * w_after;
+        loss += w * spread + w * w * delta / 3.0;
+        g_w.push(2.0 * spread + 2.0 * w * delta / 3.0);
+        w_before += w;
+        ws_before += w * si;
+    }
+    loss
 }
 
 /// Render one ray without recording (for images).
@@ -350,7 +387,7 @@ mod tests {
     }
 
     /// The hand-written backward against central finite differences of the forward, over every
-    /// grid value that the ray touches, for each SH degree.
+    /// grid value that the ray touches, for each SH degree: colour, alpha, depth and distortion.
     #[test]
     fn gradients_match_finite_differences() {
         for degree in 0..=2 {
@@ -364,8 +401,20 @@ mod tests {
             let d = Vec3::new(1.0, 0.21, 0.83).normalize();
             let bg = [0.2, 0.5, 0.9];
             let mut samples = Vec::new();
-            let out = forward(&f0, &opt, o, d, 0.3, bg, &mut samples);
+            forward(&f0, &opt, o, d, 0.3, bg, &mut samples);
             assert!(!samples.is_empty());
+            // The linear functional plus the distortion loss (weight DIST), in base-voxel units.
+            const DIST: f32 = 0.5;
+            let delta = opt.step * f0.voxel / f0.config.base_voxel;
+            let unit = f0.config.base_voxel;
+            let total = |f: &Field| {
+                let mut s = Vec::new();
+                let out = forward(f, &opt, o, d, 0.3, bg, &mut s);
+                loss(&out) + (DIST * distortion(&s, unit, delta, &mut Vec::new())) as f64
+            };
+            let mut g_w = Vec::new();
+            distortion(&samples, unit, delta, &mut g_w);
+            g_w.iter_mut().for_each(|g| *g *= DIST);
             let ch = f0.grid.channels;
             let mut grad = vec![0f32; f0.grid.data.len()];
             let nx = f0.grid.dims[0] as u32;
@@ -379,6 +428,7 @@ mod tests {
                 [0.7, -1.1, 0.4],
                 0.9,
                 0.3,
+                &g_w,
                 |s, g| {
                     let z = s.base / (nx * ny);
                     let y = (s.base / nx) % ny;
@@ -389,7 +439,6 @@ mod tests {
                     super::super::grid::Grid::scatter(&mut grad, ch, &k, g);
                 },
             );
-            let _ = out;
             let mut checked = 0;
             let mut worst = 0.0f64;
             for i in 0..grad.len() {
@@ -398,8 +447,7 @@ mod tests {
                 fp.grid.data[i] += eps;
                 let mut fm = f0.clone();
                 fm.grid.data[i] -= eps;
-                let lp = loss(&forward(&fp, &opt, o, d, 0.3, bg, &mut Vec::new()));
-                let lm = loss(&forward(&fm, &opt, o, d, 0.3, bg, &mut Vec::new()));
+                let (lp, lm) = (total(&fp), total(&fm));
                 let num = (lp - lm) / (2.0 * eps as f64);
                 let ana = grad[i] as f64;
                 if num.abs() > 1e-6 || ana.abs() > 1e-6 {

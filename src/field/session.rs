@@ -60,7 +60,7 @@ pub fn prepare(
     let channels = 1 + 3 * super::model::sh_coeffs(setup.sh_degree);
     // params, gradient, Adam m and v, plus the stamp
     let bytes_per_vertex = channels * 16 + 4;
-    let (voxel, why) = choose_voxel(
+    let (voxel, mut why) = choose_voxel(
         views,
         lo,
         hi,
@@ -71,6 +71,17 @@ pub fn prepare(
     // Final cells per axis rounded up to a multiple of 4 so coarse stages nest exactly.
     let e = hi - lo;
     let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
+    why += &format!(
+        "; box {:.3} x {:.3} x {:.3} -> {} x {} x {} vertices ({:.1} M, {} MiB with optimiser state)",
+        e.x,
+        e.y,
+        e.z,
+        final_dims[0],
+        final_dims[1],
+        final_dims[2],
+        final_dims.iter().product::<usize>() as f64 / 1e6,
+        (final_dims.iter().product::<usize>() * bytes_per_vertex) >> 20
+    );
     let hi = lo
         + Vec3::new(
             (final_dims[0] - 1) as f32,
