@@ -46,6 +46,9 @@ pub struct Machine {
     pub cpu: String,
     pub cores: usize,
     pub os: String,
+    /// The 1-minute load average when the record was made: other work sharing the cores makes
+    /// wall-clock figures pessimistic.
+    pub load_average: Option<f64>,
 }
 
 pub fn machine() -> Machine {
@@ -64,6 +67,9 @@ pub fn machine() -> Machine {
             .map(|n| n.get())
             .unwrap_or(1),
         os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
+        load_average: std::fs::read_to_string("/proc/loadavg")
+            .ok()
+            .and_then(|s| s.split_whitespace().next()?.parse().ok()),
     }
 }
 
