@@ -7,12 +7,14 @@
 //! - [`view`]: `objnerf segment-view`; [`bench`]: `objnerf bench sam` (ours against Python
 //!   onnxruntime in the same run).
 //! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
-//! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation.
+//! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation; [`evaluate`]:
+//!   scoring it against truth masks, and the one-click-per-view oracle.
 
 pub mod bench;
 pub mod cache;
 pub mod cli;
 pub mod distance;
+pub mod evaluate;
 pub mod hull;
 pub mod mask;
 pub mod models;
