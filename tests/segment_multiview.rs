@@ -328,7 +328,7 @@ fn lego_from_one_click_matches_alpha() {
     .expect("a view without tracks fails")
     .to_string();
     assert!(
-        err.contains("'r_0'") && err.contains("no 2D-3D tracks"),
+        err.contains("r_0") && err.contains("no 2D-3D tracks"),
         "{err}"
     );
     assert!(!out.exists());

@@ -102,8 +102,16 @@ impl ViewSegmenter for SamViews<'_> {
             None => self.seg.predict_allow_empty(&emb, &p)?,
         };
         self.decoder_seconds += m.decoder_seconds;
-        // (A zoomed mask's low-res logits belong to its crop, so zoom and refine do not mix.)
-        let passes = if self.zoom.is_none() { self.refine } else { 0 };
+        // A zoomed mask's low-res logits belong to its crop, so zoom and refine do not mix. One
+        // click without a box makes the decoder pick among its multimask outputs by score, and
+        // fed back that choice can flip to a larger mask (fox: the whole wall), so a lone
+        // click is not refined; SAM itself refines with single-mask output only.
+        let single_click = p.points.len() == 1 && p.bbox.is_none();
+        let passes = if self.zoom.is_none() && !single_click {
+            self.refine
+        } else {
+            0
+        };
         for _ in 0..passes {
             if m.is_empty() {
                 break;
