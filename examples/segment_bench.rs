@@ -206,7 +206,7 @@ fn compare(
 }
 
 #[derive(Serialize)]
-struct Report {
+struct Report<'a> {
     command: String,
     machine: objnerf::segment::bench::Machine,
     note: String,
@@ -214,11 +214,11 @@ struct Report {
     load_average_end: String,
     git_commit: Option<String>,
     options: String,
-    results: Vec<MethodResult>,
+    results: &'a [MethodResult],
     /// Demo scene: ours with one object, then three, each on a fresh segmenter.
-    scaling: Vec<Scaling>,
-    three_over_one_wall: f64,
-    three_over_one_cpu: f64,
+    scaling: &'a [Scaling],
+    three_over_one_wall: Option<f64>,
+    three_over_one_cpu: Option<f64>,
     peak_rss_mib: f64,
     total_s: f64,
 }
@@ -257,7 +257,6 @@ fn main() -> Result<()> {
             .map(|t| Some(scene.images.iter().map(|im| t.visible[&im.name]).collect()))
             .collect(),
     };
-    let mut results = compare(&models, "demo", &scene, &prompts, &truth)?;
 
     // One object against three in one pass.
     let opts = PropagationOptions::default();
@@ -275,6 +274,11 @@ fn main() -> Result<()> {
         });
     }
 
+    let mut results: Vec<MethodResult> = vec![];
+    write_report(&out_dir, &args, &load_start, t0, &opts, &results, &scaling)?;
+    results.extend(compare(&models, "demo", &scene, &prompts, &truth)?);
+    write_report(&out_dir, &args, &load_start, t0, &opts, &results, &scaling)?;
+
     if let Some(model) = &lego_model {
         let lego = Scene::load(model)?;
         let truth = Truth {
@@ -285,27 +289,42 @@ fn main() -> Result<()> {
         results.extend(compare(&models, "lego", &lego, &prompts, &truth)?);
     }
 
+    write_report(&out_dir, &args, &load_start, t0, &opts, &results, &scaling)
+}
+
+/// Write the JSON and the chart (after every phase, so a long run leaves its results so far).
+fn write_report(
+    out_dir: &std::path::Path,
+    args: &[String],
+    load_start: &str,
+    t0: Instant,
+    opts: &PropagationOptions,
+    results: &[MethodResult],
+    scaling: &[Scaling],
+) -> Result<()> {
     let commit = std::process::Command::new("git")
         .args(["rev-parse", "--short=12", "HEAD"])
         .output()
         .ok()
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    let ratio =
+        |f: fn(&Scaling) -> f64| (scaling.len() == 2).then(|| f(&scaling[1]) / f(&scaling[0]));
     let report = Report {
         command: args.join(" "),
         machine: objnerf::segment::bench::machine(),
         note: "shared machine: other jobs ran at the same time (see the load averages); CPU seconds are this process's".into(),
-        load_average_start: load_start,
+        load_average_start: load_start.to_string(),
         load_average_end: load_avg(),
         git_commit: commit,
         options: format!("{opts:?}"),
-        three_over_one_wall: scaling[1].wall_s / scaling[0].wall_s,
-        three_over_one_cpu: scaling[1].cpu_s / scaling[0].cpu_s,
+        three_over_one_wall: ratio(|s| s.wall_s),
+        three_over_one_cpu: ratio(|s| s.cpu_s),
         results,
         scaling,
         peak_rss_mib: peak_rss_mib(),
         total_s: t0.elapsed().as_secs_f64(),
     };
-    std::fs::create_dir_all(&out_dir).map_err(|e| objnerf::Error::io(&out_dir, e))?;
+    std::fs::create_dir_all(out_dir).map_err(|e| objnerf::Error::io(out_dir, e))?;
     let json = out_dir.join("segment_bench.json");
     objnerf::util::atomic::write_bytes_atomic(
         &json,
@@ -313,15 +332,16 @@ fn main() -> Result<()> {
             .expect("report serialises")
             .as_bytes(),
     )?;
-    let svg = out_dir.join("segment_bench.svg");
-    let chart = chart(&report).map_err(|e| objnerf::Error::invalid(format!("chart: {e}")))?;
-    objnerf::util::atomic::write_bytes_atomic(&svg, chart.as_bytes())?;
-    println!(
-        "3 objects / 1 object: {:.2} wall, {:.2} CPU; wrote {} and {}",
+    if !results.is_empty() {
+        let svg = out_dir.join("segment_bench.svg");
+        let chart = chart(&report).map_err(|e| objnerf::Error::invalid(format!("chart: {e}")))?;
+        objnerf::util::atomic::write_bytes_atomic(&svg, chart.as_bytes())?;
+    }
+    eprintln!(
+        "3 objects / 1 object: {:?} wall, {:?} CPU; wrote {}",
         report.three_over_one_wall,
         report.three_over_one_cpu,
-        json.display(),
-        svg.display()
+        json.display()
     );
     Ok(())
 }
