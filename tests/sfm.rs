@@ -54,34 +54,13 @@ fn demo_scene_registers_every_view_from_images_alone() {
 
 #[test]
 fn lego_is_triangulated_with_its_known_poses() {
-    if !have_colmap() {
-        return;
-    }
-    let Some(lego) = common::shared_data("lego") else {
+    // Built once and shared with the segmentation tests.
+    let Some(out) = common::lego_sfm_model() else {
         return;
     };
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("lego_sfm");
-    let json = lego.join("transforms_train.json");
-    let st = Command::new(common::objnerf_bin())
-        .args([
-            "sfm",
-            json.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--downscale",
-            "2",
-            "--max-features",
-            "4096",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    let json = common::shared_data("lego")
+        .unwrap()
+        .join("transforms_train.json");
     let original = Scene::load(&json).unwrap();
     let model = Scene::load(&out).unwrap();
     assert_eq!(model.images.len(), 100);

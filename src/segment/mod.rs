@@ -9,7 +9,8 @@
 //!   onnxruntime in the same run); [`bench_convert`]: `objnerf bench sam-convert` (our ONNX
 //!   files against the PyTorch export).
 //! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
-//! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation.
+//! - [`distance`], [`hull`], [`propagate`], [`output`]: multi-view segmentation; [`evaluate`]:
+//!   scoring it against truth masks, and the one-click-per-view oracle.
 
 pub mod bench;
 pub mod bench_convert;
@@ -17,6 +18,7 @@ pub mod cache;
 pub mod cli;
 pub mod convert;
 pub mod distance;
+pub mod evaluate;
 pub mod hull;
 pub mod mask;
 pub mod models;

@@ -121,7 +121,7 @@ pub struct ViewResult {
 
 impl ViewResult {
     /// A view not (yet) segmented: absent until a mask says otherwise.
-    fn unsegmented(name: &str) -> Self {
+    pub fn unsegmented(name: &str) -> Self {
         ViewResult {
             view: name.to_string(),
             status: ViewStatus::Absent,
@@ -164,6 +164,48 @@ pub fn require_tracks(scene: &Scene) -> Result<()> {
     Ok(())
 }
 
+/// The clicked view must have features with 3D points, or nothing can carry the click further.
+pub fn require_view_tracks(scene: &Scene, view: usize) -> Result<()> {
+    let im = &scene.images[view];
+    if !im.features.iter().any(|f| f.point.is_some()) {
+        return Err(Error::invalid(format!(
+            "view '{}' of {} has no 2D-3D tracks (COLMAP triangulated none of its features): click in another view",
+            im.name,
+            scene.source.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The click's mask must be an object: not empty, and not the background. A mask that touches
+/// all four borders and covers more than half the image is taken for the background (SAM's
+/// answer to a click beside the object; lego's r_0 clicked at (40, 40) gives 76% of the image).
+fn check_click_mask(scene: &Scene, prompt: &ObjectPrompt, mask: &GrayImage) -> Result<()> {
+    let name = &scene.images[prompt.view].name;
+    let (w, h) = mask.dimensions();
+    let on = |x: u32, y: u32| mask.get_pixel(x, y)[0] > 127;
+    let area = mask.pixels().filter(|p| p[0] > 127).count();
+    if area == 0 {
+        return Err(Error::invalid(format!(
+            "the click on view '{name}' gave an empty mask for '{}': click inside the object",
+            prompt.name
+        )));
+    }
+    let touches_all = (0..w).any(|x| on(x, 0))
+        && (0..w).any(|x| on(x, h - 1))
+        && (0..h).any(|y| on(0, y))
+        && (0..h).any(|y| on(w - 1, y));
+    let fraction = area as f64 / (w as f64 * h as f64);
+    if touches_all && fraction > 0.5 {
+        return Err(Error::invalid(format!(
+            "the click on view '{name}' for '{}' selected the background (its mask covers {:.0}% of the image and touches every border): click on the object",
+            prompt.name,
+            100.0 * fraction
+        )));
+    }
+    Ok(())
+}
+
 /// Run Algorithm 1 for one object.
 pub fn propagate(
     scene: &Scene,
@@ -180,14 +222,10 @@ pub fn propagate(
         .map(|im| ViewResult::unsegmented(&im.name))
         .collect();
 
+    require_view_tracks(scene, prompt.view)?;
     // The clicked view.
     let first = seg.segment(scene, prompt.view, &prompt.points, prompt.bbox)?;
-    if first.mask.pixels().all(|p| p[0] <= 127) {
-        return Err(Error::invalid(format!(
-            "the click on view '{}' gave an empty mask for '{}': click inside the object",
-            scene.images[prompt.view].name, prompt.name
-        )));
-    }
+    check_click_mask(scene, prompt, &first.mask)?;
     vote(
         scene,
         prompt.view,

@@ -191,6 +191,9 @@ pub fn segment_scene(
 ) -> Result<(SegmentReport, Vec<ObjectSegmentation>)> {
     let t0 = Instant::now();
     super::propagate::require_tracks(scene)?;
+    for p in prompts {
+        super::propagate::require_view_tracks(scene, p.view)?;
+    }
     let dest = AtomicDir::new(out, overwrite)?;
     let models = ModelsDir::from_env()?;
     let seg = Segmenter::open(&models, 0)?;

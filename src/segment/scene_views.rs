@@ -20,6 +20,12 @@ pub struct SamViews<'a> {
     /// Re-segment small objects on a crop ([`Segmenter::segment_zoomed`]): sharper edges for one
     /// more encoder pass per small object and view.
     zoom: Option<ZoomOptions>,
+    /// Decoder passes that feed the previous pass's low-res logits back as `mask_input` with the
+    /// same prompts (SAM's iterative refinement). One pass fills the parts a box-and-points
+    /// prompt misses (lego's shovel): lego one-click mIoU 0.959 -> 0.976 over 100 views, demo
+    /// mIoU(ok) up by 0.00-0.012 per object and obstruction F1 0.933 -> 1.0; one more decoder
+    /// run (tens of ms) per mask.
+    refine: usize,
     /// Time spent in the encoder (with its preprocessing) and in the decoder, seconds.
     pub encoder_seconds: f64,
     pub decoder_seconds: f64,
@@ -31,6 +37,7 @@ impl<'a> SamViews<'a> {
             seg,
             last: None,
             zoom: None,
+            refine: 1,
             encoder_seconds: 0.0,
             decoder_seconds: 0.0,
         }
@@ -38,6 +45,11 @@ impl<'a> SamViews<'a> {
 
     pub fn with_zoom(mut self, zoom: Option<ZoomOptions>) -> Self {
         self.zoom = zoom;
+        self
+    }
+
+    pub fn with_refine(mut self, passes: usize) -> Self {
+        self.refine = passes;
         self
     }
 
@@ -78,7 +90,7 @@ impl ViewSegmenter for SamViews<'_> {
             bbox: bbox.map(|b| [b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32]),
             mask_input: None,
         };
-        let m = match &self.zoom {
+        let mut m = match &self.zoom {
             // Zooming needs the image and a non-empty first mask; an empty one stays empty.
             Some(z) => {
                 let img = load_rgb(&scene.images[view].path)?;
@@ -90,6 +102,27 @@ impl ViewSegmenter for SamViews<'_> {
             None => self.seg.predict_allow_empty(&emb, &p)?,
         };
         self.decoder_seconds += m.decoder_seconds;
+        // A zoomed mask's low-res logits belong to its crop, so zoom and refine do not mix. One
+        // click without a box makes the decoder pick among its multimask outputs by score, and
+        // fed back that choice can flip to a larger mask (fox: the whole wall), so a lone
+        // click is not refined; SAM itself refines with single-mask output only.
+        let single_click = p.points.len() == 1 && p.bbox.is_none();
+        let passes = if self.zoom.is_none() && !single_click {
+            self.refine
+        } else {
+            0
+        };
+        for _ in 0..passes {
+            if m.is_empty() {
+                break;
+            }
+            let again = Prompts {
+                mask_input: Some(m.low_res_input()),
+                ..p.clone()
+            };
+            m = self.seg.predict_allow_empty(&emb, &again)?;
+            self.decoder_seconds += m.decoder_seconds;
+        }
         Ok(ViewMask {
             mask: m.to_image(),
             score: m.score,

@@ -60,3 +60,48 @@ pub fn validate_gltf(path: &std::path::Path) -> serde_json::Value {
         )
     })
 }
+
+/// lego triangulated with its known poses (`objnerf sfm transforms_train.json --downscale 2
+/// --max-features 4096`, about 3 minutes), built once per build of the binary into the target
+/// directory and shared by the tests that need it. `None` (with a printed reason) without lego
+/// or COLMAP.
+pub fn lego_sfm_model() -> Option<PathBuf> {
+    static BUILDING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one_at_a_time = BUILDING.lock().unwrap_or_else(|e| e.into_inner());
+    let lego = shared_data("lego")?;
+    if objnerf::scene::sfm::colmap_program().is_err() {
+        eprintln!("SKIP: colmap is not installed (scripts/setup installs it)");
+        return None;
+    }
+    // Keyed by the binary, so that a model from older code is never reused.
+    let meta = std::fs::metadata(objnerf_bin()).unwrap();
+    let modified = meta
+        .modified()
+        .unwrap()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos();
+    let tmp = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let name = format!("lego_sfm-{}-{modified}", meta.len());
+    let out = tmp.join(&name);
+    if out.join("sparse/0/points3D.bin").is_file() {
+        return Some(out);
+    }
+    for old in std::fs::read_dir(&tmp).into_iter().flatten().flatten() {
+        if old.file_name().to_string_lossy().starts_with("lego_sfm-") {
+            let _ = std::fs::remove_dir_all(old.path());
+        }
+    }
+    let st = std::process::Command::new(objnerf_bin())
+        .args(["sfm", lego.join("transforms_train.json").to_str().unwrap()])
+        .args(["--out", out.to_str().unwrap(), "--overwrite"])
+        .args(["--downscale", "2", "--max-features", "4096"])
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    Some(out)
+}
