@@ -4,23 +4,14 @@ use super::{extract, ExtractOptions, ExtractReport};
 use crate::error::Result;
 use crate::field::commands::DepthMode;
 use crate::scene::Scene;
-use crate::segment::run::group_prompts;
+use crate::segment::run::{group_prompts, ClickArgs};
 use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct ExtractCmd {
-    /// A scene with 2D-3D tracks (a COLMAP model, or any scene after `objnerf sfm`).
-    pub scene: PathBuf,
-    /// The view the clicks are in (name, file name, stem or index).
-    #[arg(long)]
-    pub view: Vec<String>,
-    /// Start a new object with this name; the --point options after it belong to it.
-    #[arg(long)]
-    pub object: Vec<String>,
-    /// A click x,y[,fg|bg] in pixels (corner origin).
-    #[arg(long, allow_hyphen_values = true)]
-    pub point: Vec<String>,
+    #[command(flatten)]
+    pub clicks: ClickArgs,
     /// Run folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -74,9 +65,15 @@ impl ExtractCmd {
 
     /// `argv` is the raw command line, read for the order of --view/--object/--point.
     pub fn run(self, argv: &[String]) -> Result<()> {
-        let scene = Scene::load(&self.scene)?;
+        let scene = Scene::load(&self.clicks.scene)?;
         let prompts = group_prompts(argv, &scene)?;
-        let report = extract(&self.scene, &scene, &prompts, &self.options(), &self.out)?;
+        let report = extract(
+            &self.clicks.scene,
+            &scene,
+            &prompts,
+            &self.options(),
+            &self.out,
+        )?;
         if self.json {
             println!(
                 "{}",

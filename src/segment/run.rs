@@ -16,8 +16,10 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The scene and the clicks, shared by `segment` and `extract`. The options' order on the
+/// command line matters (see [`group_prompts`]); clap only declares them.
 #[derive(Args, Debug)]
-pub struct SegmentCmd {
+pub struct ClickArgs {
     /// A scene with 2D-3D tracks (a COLMAP model, or any scene after `objnerf sfm`).
     pub scene: PathBuf,
     /// The view the clicks are in (name, file name, stem or index); applies to the objects after it.
@@ -29,6 +31,12 @@ pub struct SegmentCmd {
     /// A click x,y[,fg|bg] in pixels (corner origin) on the current object.
     #[arg(long, allow_hyphen_values = true)]
     pub point: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+pub struct SegmentCmd {
+    #[command(flatten)]
+    pub clicks: ClickArgs,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -243,7 +251,7 @@ pub fn segment_scene(
 impl SegmentCmd {
     /// `argv` is the raw command line, read for the order of --view/--object/--point.
     pub fn run(self, argv: &[String]) -> Result<()> {
-        let scene = Scene::load(&self.scene)?;
+        let scene = Scene::load(&self.clicks.scene)?;
         let prompts = group_prompts(argv, &scene)?;
         let opts = PropagationOptions {
             max_prompts: self.prompts,
