@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::segment::distance::signed_distance;
 use crate::segment::hull::{expected_mask, iou, HullOptions};
+use crate::segment::view_prompts::{farthest_point_sample, view_prompts};
 use glam::DVec2;
 use image::GrayImage;
 use serde::Serialize;
@@ -63,6 +64,15 @@ pub struct PropagationOptions {
     pub min_prompts: usize,
     /// Masks smaller than this fraction of the image are flagged tiny.
     pub tiny_fraction: f64,
+    /// A view with fewer than `max_prompts` correspondences is also prompted with D's points
+    /// projected into it, where its own features do not contradict them (see
+    /// [`super::view_prompts`]).
+    pub projected_fill: bool,
+    /// How near (fraction of the image's larger side) a feature must be to contradict a
+    /// projected point.
+    pub free_space_radius: f64,
+    /// ... and at what relative depth difference.
+    pub free_space_depth: f64,
     pub hull: HullOptions,
 }
 
@@ -76,6 +86,9 @@ impl Default for PropagationOptions {
             obstruction_coverage: 0.52,
             min_prompts: 1,
             tiny_fraction: 1e-3,
+            projected_fill: true,
+            free_space_radius: 0.02,
+            free_space_depth: 0.05,
             hull: HullOptions::default(),
         }
     }
@@ -107,6 +120,8 @@ pub struct ViewResult {
     /// The fraction of the expected mask the mask covers: about the visible fraction of the object.
     pub expected_coverage: Option<f64>,
     pub num_prompts: usize,
+    /// Of the positives, how many are D's points projected into the view (not correspondences).
+    pub num_projected: usize,
     /// Position in the visiting order (0 = the clicked view), None when never prompted.
     pub order: Option<usize>,
     /// "cut" (the object runs off the frame), "tiny" (mask under `tiny_fraction` of the image).
@@ -115,7 +130,8 @@ pub struct ViewResult {
     pub mask: Option<GrayImage>,
     #[serde(skip)]
     pub logits: Option<Vec<f32>>,
-    #[serde(skip)]
+    /// The prompts given to SAM in this view (pixels, corner origin): what to look at when a
+    /// mask is wrong.
     pub prompts: Vec<PointPrompt>,
 }
 
@@ -129,6 +145,7 @@ impl ViewResult {
             expected_iou: None,
             expected_coverage: None,
             num_prompts: 0,
+            num_projected: 0,
             order: None,
             flags: vec![],
             mask: None,
@@ -147,9 +164,16 @@ pub struct ObjectSegmentation {
 }
 
 #[derive(Clone, Copy, Default)]
-struct Votes {
+pub struct Votes {
     inside: u32,
     outside: u32,
+}
+
+impl Votes {
+    /// Known to lie outside: voted out, never in.
+    pub fn is_outside(&self) -> bool {
+        self.outside > 0 && self.inside == 0
+    }
 }
 
 /// Propagation needs 2D-3D tracks; say how to get them.
@@ -268,10 +292,10 @@ pub fn propagate(
             continue;
         }
         let prompts = view_prompts(scene, v, &votes, &in_d, opts);
-        let bbox = opts.box_padding.map(|pad| prompt_box(scene, v, &in_d, pad));
-        let result = seg.segment(scene, v, &prompts, bbox)?;
+        let result = seg.segment(scene, v, &prompts.points, prompts.bbox)?;
         vote(scene, v, &result.mask, opts.edge_margin_px, &mut votes);
-        record(&mut views[v], result, prompts, order);
+        record(&mut views[v], result, prompts.points, order);
+        views[v].num_projected = prompts.projected;
     }
 
     let points = members(&votes);
@@ -326,109 +350,6 @@ fn vote(scene: &Scene, view: usize, mask: &GrayImage, margin: f64, votes: &mut [
             votes[p].outside += 1;
         }
     }
-}
-
-/// Positive prompts: the view's features whose point is in D, thinned by farthest-point sampling;
-/// negatives: features of points known to be outside, nearest to the positives.
-fn view_prompts(
-    scene: &Scene,
-    v: usize,
-    votes: &[Votes],
-    in_d: &[bool],
-    opts: &PropagationOptions,
-) -> Vec<PointPrompt> {
-    let feats = &scene.images[v].features;
-    let pos: Vec<DVec2> = feats
-        .iter()
-        .filter(|f| f.point.is_some_and(|p| in_d[p]))
-        .map(|f| f.xy)
-        .collect();
-    let mut prompts: Vec<PointPrompt> = farthest_point_sample(&pos, opts.max_prompts)
-        .into_iter()
-        .map(|p| PointPrompt {
-            xy: [p.x, p.y],
-            positive: true,
-        })
-        .collect();
-    if opts.max_negatives > 0 && !pos.is_empty() {
-        let centroid = pos.iter().fold(DVec2::ZERO, |a, p| a + *p) / pos.len() as f64;
-        let min_gap = 2.0 * opts.edge_margin_px;
-        let mut neg: Vec<(f64, DVec2)> = feats
-            .iter()
-            .filter(|f| {
-                f.point
-                    .is_some_and(|p| votes[p].outside > 0 && votes[p].inside == 0)
-            })
-            .filter(|f| pos.iter().all(|q| (*q - f.xy).length() >= min_gap))
-            .map(|f| ((f.xy - centroid).length(), f.xy))
-            .collect();
-        neg.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let near: Vec<DVec2> = neg
-            .iter()
-            .take(4 * opts.max_negatives)
-            .map(|x| x.1)
-            .collect();
-        prompts.extend(
-            farthest_point_sample(&near, opts.max_negatives)
-                .into_iter()
-                .map(|p| PointPrompt {
-                    xy: [p.x, p.y],
-                    positive: false,
-                }),
-        );
-    }
-    prompts
-}
-
-/// The box around view `v`'s features whose point is in D, grown by `pad` of its size.
-fn prompt_box(scene: &Scene, v: usize, in_d: &[bool], pad: f64) -> [f64; 4] {
-    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    for f in scene.images[v]
-        .features
-        .iter()
-        .filter(|f| f.point.is_some_and(|p| in_d[p]))
-    {
-        lo = lo.min(f.xy);
-        hi = hi.max(f.xy);
-    }
-    let g = (hi - lo) * pad;
-    let cam = scene.camera_of(&scene.images[v]);
-    let max = DVec2::new(cam.width as f64, cam.height as f64);
-    let (lo, hi) = ((lo - g).max(DVec2::ZERO), (hi + g).min(max));
-    [lo.x, lo.y, hi.x, hi.y]
-}
-
-/// Up to `k` points spread out: start at the point nearest the centroid, then repeatedly take the
-/// point farthest from those chosen. Deterministic.
-pub fn farthest_point_sample(pts: &[DVec2], k: usize) -> Vec<DVec2> {
-    if pts.len() <= k {
-        return pts.to_vec();
-    }
-    let centroid = pts.iter().fold(DVec2::ZERO, |a, p| a + *p) / pts.len() as f64;
-    let start = (0..pts.len())
-        .min_by(|&a, &b| {
-            (pts[a] - centroid)
-                .length_squared()
-                .total_cmp(&(pts[b] - centroid).length_squared())
-        })
-        .unwrap_or(0);
-    let mut chosen = vec![pts[start]];
-    let mut dist: Vec<f64> = pts
-        .iter()
-        .map(|p| (*p - pts[start]).length_squared())
-        .collect();
-    while chosen.len() < k {
-        let (i, _) =
-            dist.iter().enumerate().fold(
-                (0, -1.0),
-                |acc, (i, d)| if *d > acc.1 { (i, *d) } else { acc },
-            );
-        chosen.push(pts[i]);
-        for (d, p) in dist.iter_mut().zip(pts) {
-            *d = d.min((*p - pts[i]).length_squared());
-        }
-    }
-    chosen
 }
 
 /// Compare every mask with the expected mask of D's projection; mark obstructed, cut and tiny views.
@@ -594,28 +515,4 @@ pub fn projection_baseline(
         views,
         points,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn farthest_point_sampling_spreads_out() {
-        let pts: Vec<DVec2> = (0..100)
-            .map(|i| DVec2::new((i % 10) as f64, (i / 10) as f64))
-            .collect();
-        let s = farthest_point_sample(&pts, 5);
-        assert_eq!(s.len(), 5);
-        // The four corners are among the picks after the central start.
-        for c in [
-            DVec2::new(0.0, 0.0),
-            DVec2::new(9.0, 0.0),
-            DVec2::new(0.0, 9.0),
-            DVec2::new(9.0, 9.0),
-        ] {
-            assert!(s.contains(&c), "{c} not in {s:?}");
-        }
-        assert_eq!(farthest_point_sample(&pts[..3], 5).len(), 3);
-    }
 }
