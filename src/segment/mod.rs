@@ -9,7 +9,7 @@
 //!   onnxruntime in the same run); [`bench_convert`]: `objnerf bench sam-convert` (our ONNX
 //!   files against the PyTorch export).
 //! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
-//! - [`distance`], [`hull`], [`propagate`] with [`view_prompts`], [`output`]: multi-view segmentation; [`evaluate`]:
+//! - [`distance`], [`hull`], [`propagate`] with [`view_prompts`] and [`regions`], [`output`]: multi-view segmentation; [`evaluate`]:
 //!   scoring it against truth masks, and the one-click-per-view oracle.
 
 pub mod bench;
@@ -26,6 +26,7 @@ pub mod output;
 pub mod preprocess;
 pub mod prompt;
 pub mod propagate;
+pub mod regions;
 pub mod run;
 pub mod sam;
 pub mod scene_views;

@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::segment::distance::signed_distance;
 use crate::segment::hull::{expected_mask, iou, HullOptions};
+use crate::segment::regions::{clean_mask, CleanOptions};
 use crate::segment::view_prompts::{farthest_point_sample, view_prompts};
 use glam::DVec2;
 use image::GrayImage;
@@ -73,6 +74,8 @@ pub struct PropagationOptions {
     pub free_space_radius: f64,
     /// ... and at what relative depth difference.
     pub free_space_depth: f64,
+    /// Clean every mask before it votes: stray islands and pin-holes (None: SAM's mask as is).
+    pub clean: Option<CleanOptions>,
     pub hull: HullOptions,
 }
 
@@ -89,6 +92,7 @@ impl Default for PropagationOptions {
             projected_fill: true,
             free_space_radius: 0.02,
             free_space_depth: 0.05,
+            clean: Some(CleanOptions::default()),
             hull: HullOptions::default(),
         }
     }
@@ -248,7 +252,8 @@ pub fn propagate(
 
     require_view_tracks(scene, prompt.view)?;
     // The clicked view.
-    let first = seg.segment(scene, prompt.view, &prompt.points, prompt.bbox)?;
+    let mut first = seg.segment(scene, prompt.view, &prompt.points, prompt.bbox)?;
+    clean(&mut first, &prompt.points, opts);
     check_click_mask(scene, prompt, &first.mask)?;
     vote(
         scene,
@@ -292,7 +297,8 @@ pub fn propagate(
             continue;
         }
         let prompts = view_prompts(scene, v, &votes, &in_d, opts);
-        let result = seg.segment(scene, v, &prompts.points, prompts.bbox)?;
+        let mut result = seg.segment(scene, v, &prompts.points, prompts.bbox)?;
+        clean(&mut result, &prompts.points, opts);
         vote(scene, v, &result.mask, opts.edge_margin_px, &mut votes);
         record(&mut views[v], result, prompts.points, order);
         views[v].num_projected = prompts.projected;
@@ -305,6 +311,18 @@ pub fn propagate(
         views,
         points,
     })
+}
+
+/// SAM's mask without stray islands and pin-holes (see [`super::regions`]).
+fn clean(m: &mut ViewMask, prompts: &[PointPrompt], opts: &PropagationOptions) {
+    if let Some(c) = &opts.clean {
+        let positives: Vec<DVec2> = prompts
+            .iter()
+            .filter(|p| p.positive)
+            .map(|p| DVec2::new(p.xy[0], p.xy[1]))
+            .collect();
+        clean_mask(&mut m.mask, &positives, c);
+    }
 }
 
 fn record(v: &mut ViewResult, m: ViewMask, prompts: Vec<PointPrompt>, order: usize) {
