@@ -37,13 +37,12 @@ pub trait ViewSegmenter {
     ) -> Result<ViewMask>;
 }
 
-/// A segmenter's answer: the mask at image size (0/255), the model's score and, where the model
-/// gives them, per-pixel logits (used to settle pixels claimed by two objects).
+/// A segmenter's answer: the mask at image size (0/255) and the model's score. (No logits: at
+/// full size they are 8 MB a view, and overlaps are settled by depth.)
 #[derive(Clone)]
 pub struct ViewMask {
     pub mask: GrayImage,
     pub score: f32,
-    pub logits: Option<Vec<f32>>,
 }
 
 #[derive(Clone, Debug)]
@@ -132,8 +131,6 @@ pub struct ViewResult {
     pub flags: Vec<&'static str>,
     #[serde(skip)]
     pub mask: Option<GrayImage>,
-    #[serde(skip)]
-    pub logits: Option<Vec<f32>>,
     /// The prompts given to SAM in this view (pixels, corner origin): what to look at when a
     /// mask is wrong.
     pub prompts: Vec<PointPrompt>,
@@ -153,7 +150,6 @@ impl ViewResult {
             order: None,
             flags: vec![],
             mask: None,
-            logits: None,
             prompts: vec![],
         }
     }
@@ -332,7 +328,6 @@ fn record(v: &mut ViewResult, m: ViewMask, prompts: Vec<PointPrompt>, order: usi
     v.prompts = prompts;
     v.order = Some(order);
     v.mask = Some(m.mask);
-    v.logits = m.logits;
 }
 
 fn membership(votes: &[Votes]) -> Vec<bool> {

@@ -126,7 +126,6 @@ impl ViewSegmenter for SamViews<'_> {
         Ok(ViewMask {
             mask: m.to_image(),
             score: m.score,
-            logits: Some(m.logits),
         })
     }
 }
