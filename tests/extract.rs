@@ -168,7 +168,7 @@ fn empty_model(path: &Path) {
         adam: None,
         notes: serde_json::json!({}),
     };
-    model_io::save(path, &model).unwrap();
+    model_io::save(path, &model.parts()).unwrap();
 }
 
 fn mesh_cmd(args: &[&std::ffi::OsStr]) -> (bool, String) {

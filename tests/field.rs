@@ -83,7 +83,7 @@ fn resuming_from_a_saved_model_continues_exactly() {
     let path = dir.path().join("m.objf");
     let whole = train_steps(&views, small_cfg(20), 20);
     let half = train_steps(&views, small_cfg(20), 10);
-    io::save(&path, &half.to_model(io::IDENTITY, serde_json::Value::Null)).unwrap();
+    io::save(&path, &half.parts(io::IDENTITY, serde_json::Value::Null)).unwrap();
     let m = io::load(&path).unwrap();
     assert_eq!(m.field.grid.data, half.field.grid.data);
     let mut resumed = field::Trainer::from_model(m, small_cfg(20));
@@ -112,7 +112,7 @@ fn small_model_file(dir: &Path) -> std::path::PathBuf {
     let p = dir.join("small.objf");
     io::save(
         &p,
-        &t.to_model(io::IDENTITY, serde_json::json!({"downscale": 2})),
+        &t.parts(io::IDENTITY, serde_json::json!({"downscale": 2})),
     )
     .unwrap();
     p

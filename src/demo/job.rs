@@ -105,7 +105,7 @@ fn score(
     }
     let miou = ious.iter().sum::<f64>() / ious.len().max(1) as f64;
 
-    let model = crate::field::io::load(&obj.model)?;
+    let model = crate::field::io::load_field(&obj.model)?;
     let views = load_views(scene, &MaskSource::Dir(truth_masks), 1)?;
     let held: Vec<_> = views
         .into_iter()

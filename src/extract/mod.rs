@@ -218,7 +218,7 @@ pub fn extract(
         let train_seconds = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let field = crate::field::io::load(&model)?.field;
+        let field = crate::field::io::load_field(&model)?.field;
         let (mesh, mesh_report) = mesh_field(&field, &obj.name, &opts.mesh)
             .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
         write_mesh(&mesh, &frame, &dir.join("mesh.glb"))?;

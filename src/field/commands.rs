@@ -142,7 +142,7 @@ pub fn train(args: &TrainArgs, mut progress: impl FnMut(&StepStats, f64)) -> Res
         "depth": format!("{:?}", args.depth),
         "depth_targets": depth_targets,
     });
-    io::save(&args.out, &trainer.to_model(IDENTITY, notes))?;
+    io::save(&args.out, &trainer.parts(IDENTITY, notes))?;
     Ok(TrainReport {
         setup,
         run: summary,
@@ -184,7 +184,7 @@ pub fn camera_views(scene: &crate::Scene, downscale: u32) -> Vec<View> {
 /// Render every view of `scene`: `<name>.png` (RGB on white), `<name>_alpha.png` and
 /// `<name>_depth.png` (z-depth, 16-bit millimetres, 0 = empty) into `out`. Returns the files written.
 pub fn render(model: &Path, scene: &Path, out: &Path, downscale: Option<u32>) -> Result<usize> {
-    let m = io::load(model)?;
+    let m = io::load_field(model)?;
     let ds = downscale.unwrap_or_else(|| model_downscale(&m));
     let scene = crate::Scene::load(scene)?;
     let views = camera_views(&scene, ds);
@@ -231,7 +231,7 @@ pub fn eval(
     masks: &MaskSource,
     downscale: Option<u32>,
 ) -> Result<EvalReport> {
-    let m = io::load(model)?;
+    let m = io::load_field(model)?;
     let ds = downscale.unwrap_or_else(|| model_downscale(&m));
     let scene = crate::Scene::load(scene)?;
     let views = load_views(&scene, masks, ds)?;

@@ -78,37 +78,102 @@ pub const IDENTITY: [[f64; 4]; 4] = [
     [0.0, 0.0, 0.0, 1.0],
 ];
 
-fn f32_bytes(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+/// What a model file is written from, borrowed: training writes its trainer's grid and
+/// optimiser state without copying them (for fox's 1 GiB grid a copy doubled the peak memory).
+pub struct ModelParts<'a> {
+    pub field: &'a Field,
+    pub final_dims: [usize; 3],
+    pub world_transform: [[f64; 4]; 4],
+    pub train: Option<&'a TrainConfig>,
+    pub step: usize,
+    pub adam: Option<(&'a [f32], &'a [f32], u32)>,
+    pub notes: serde_json::Value,
 }
 
-fn u64_bytes(v: &[u64]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+impl Model {
+    pub fn parts(&self) -> ModelParts<'_> {
+        ModelParts {
+            field: &self.field,
+            final_dims: self.final_dims,
+            world_transform: self.world_transform,
+            train: self.train.as_ref(),
+            step: self.step,
+            adam: self.adam.as_ref().map(|(m, v, t)| (&m[..], &v[..], *t)),
+            notes: self.notes.clone(),
+        }
+    }
+}
+
+/// An array to write, as its values; turned into little-endian bytes a chunk at a time.
+enum Blob<'a> {
+    F32(&'a [f32]),
+    U64(&'a [u64]),
+}
+
+impl Blob<'_> {
+    fn dtype(&self) -> &'static str {
+        match self {
+            Blob::F32(_) => "f32",
+            Blob::U64(_) => "u64",
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            Blob::F32(v) => v.len(),
+            Blob::U64(v) => v.len(),
+        }
+    }
+
+    fn for_each_chunk(
+        &self,
+        mut f: impl FnMut(&[u8]) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        const N: usize = 1 << 14;
+        let mut buf = Vec::with_capacity(N * 8);
+        match self {
+            Blob::F32(v) => {
+                for c in v.chunks(N) {
+                    buf.clear();
+                    buf.extend(c.iter().flat_map(|x| x.to_le_bytes()));
+                    f(&buf)?;
+                }
+            }
+            Blob::U64(v) => {
+                for c in v.chunks(N) {
+                    buf.clear();
+                    buf.extend(c.iter().flat_map(|x| x.to_le_bytes()));
+                    f(&buf)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn sha256(&self) -> String {
+        let mut h = Sha256::new();
+        self.for_each_chunk(|b| {
+            h.update(b);
+            Ok(())
+        })
+        .expect("hashing does not fail");
+        hex(&h.finalize())
+    }
 }
 
 fn hex(d: &[u8]) -> String {
     d.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-pub fn save(path: &Path, m: &Model) -> Result<()> {
-    let f = &m.field;
-    let mut blobs: Vec<(&str, &str, u64, Vec<u8>)> = vec![
-        (
-            "grid",
-            "f32",
-            f.grid.data.len() as u64,
-            f32_bytes(&f.grid.data),
-        ),
-        (
-            "occupancy",
-            "u64",
-            f.occupancy.len() as u64,
-            u64_bytes(&f.occupancy),
-        ),
+pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
+    let f = m.field;
+    let mut blobs: Vec<(&str, Blob)> = vec![
+        ("grid", Blob::F32(&f.grid.data)),
+        ("occupancy", Blob::U64(&f.occupancy)),
     ];
-    if let Some((am, av, _)) = &m.adam {
-        blobs.push(("adam_m", "f32", am.len() as u64, f32_bytes(am)));
-        blobs.push(("adam_v", "f32", av.len() as u64, f32_bytes(av)));
+    if let Some((am, av, _)) = m.adam {
+        blobs.push(("adam_m", Blob::F32(am)));
+        blobs.push(("adam_v", Blob::F32(av)));
     }
     let header = Header {
         format: "objnerf-field".into(),
@@ -121,17 +186,17 @@ pub fn save(path: &Path, m: &Model) -> Result<()> {
         channels: f.grid.channels,
         final_dims: m.final_dims,
         world_transform: m.world_transform,
-        train: m.train.clone(),
+        train: m.train.cloned(),
         step: m.step,
-        adam_t: m.adam.as_ref().map(|a| a.2).unwrap_or(0),
+        adam_t: m.adam.map(|a| a.2).unwrap_or(0),
         notes: m.notes.clone(),
         arrays: blobs
             .iter()
-            .map(|(n, t, l, b)| ArrayInfo {
+            .map(|(n, b)| ArrayInfo {
                 name: n.to_string(),
-                dtype: t.to_string(),
-                len: *l,
-                sha256: hex(&Sha256::digest(b)),
+                dtype: b.dtype().to_string(),
+                len: b.len() as u64,
+                sha256: b.sha256(),
             })
             .collect(),
     };
@@ -141,39 +206,51 @@ pub fn save(path: &Path, m: &Model) -> Result<()> {
         w.write_all(MAGIC)?;
         w.write_all(&(json.len() as u64).to_le_bytes())?;
         w.write_all(&json)?;
-        for (_, _, _, b) in &blobs {
-            w.write_all(b)?;
+        for (_, b) in &blobs {
+            b.for_each_chunk(|c| w.write_all(c))?;
         }
         Ok(())
     })
 }
 
+/// Load a model with its optimiser state (to resume training).
 pub fn load(path: &Path) -> Result<Model> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    parse(path, &bytes)
+    read(path, true)
 }
 
-/// Parse a model file's bytes (`path` names it in errors).
-pub fn parse(path: &Path, bytes: &[u8]) -> Result<Model> {
+/// Load a model without its optimiser state (two thirds of the file): for rendering, meshing
+/// and evaluation. The arrays it skips are not checked.
+pub fn load_field(path: &Path) -> Result<Model> {
+    read(path, false)
+}
+
+/// Read a model file as a stream: the arrays go straight into their typed vectors, so the
+/// file's bytes are never held whole.
+fn read(path: &Path, with_adam: bool) -> Result<Model> {
+    use std::io::{Read, Seek, SeekFrom};
     let bad = |msg: String| Error::format(path, msg);
-    if bytes.len() < 16 || &bytes[..8] != MAGIC {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let total = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut r = std::io::BufReader::with_capacity(1 << 20, file);
+    let io_err = |e: std::io::Error| Error::io(path, e);
+    let mut start = [0u8; 16];
+    if total < 16 || r.read_exact(&mut start).is_err() || &start[..8] != MAGIC {
         return Err(bad(
             "not an objnerf field model (bad magic; expected a file written by `objnerf train`)"
                 .into(),
         ));
     }
-    let hlen = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-    let hend = 16usize
-        .checked_add(hlen)
-        .filter(|&e| e <= bytes.len())
-        .ok_or_else(|| {
-            bad(format!(
-                "truncated: the header says it is {hlen} bytes but the file has {} after the magic",
-                bytes.len() - 16
-            ))
-        })?;
-    let h: Header = serde_json::from_slice(&bytes[16..hend])
-        .map_err(|e| bad(format!("corrupt header: {e}")))?;
+    let hlen = u64::from_le_bytes(start[8..16].try_into().expect("8 bytes"));
+    if hlen > total - 16 {
+        return Err(bad(format!(
+            "truncated: the header says it is {hlen} bytes but the file has {} after the magic",
+            total - 16
+        )));
+    }
+    let mut hbytes = vec![0u8; hlen as usize];
+    r.read_exact(&mut hbytes).map_err(io_err)?;
+    let h: Header =
+        serde_json::from_slice(&hbytes).map_err(|e| bad(format!("corrupt header: {e}")))?;
     if h.format != "objnerf-field" {
         return Err(bad(format!(
             "header format is '{}', not objnerf-field",
@@ -200,68 +277,97 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Model> {
     }
     let nv: usize = h.dims.iter().product();
     let ncells: usize = h.dims.iter().map(|d| d - 1).product();
-    let mut pos = hend;
-    let mut arrays: std::collections::HashMap<String, &[u8]> = Default::default();
+    let mut pos = 16 + hlen;
+    let mut f32_arrays: std::collections::HashMap<String, Vec<f32>> = Default::default();
+    let mut u64_arrays: std::collections::HashMap<String, Vec<u64>> = Default::default();
+    let mut chunk = vec![0u8; 1 << 16];
     for a in &h.arrays {
-        let size = match a.dtype.as_str() {
+        let size: u64 = match a.dtype.as_str() {
             "f32" => 4,
             "u64" => 8,
             t => return Err(bad(format!("array '{}' has unknown dtype '{t}'", a.name))),
         };
-        let n = (a.len as usize)
+        let n = a
+            .len
             .checked_mul(size)
-            .filter(|&n| pos + n <= bytes.len())
+            .filter(|&n| pos + n <= total)
             .ok_or_else(|| {
                 bad(format!(
                     "truncated: array '{}' needs {} bytes but only {} remain",
                     a.name,
-                    a.len.saturating_mul(size as u64),
-                    bytes.len() - pos
+                    a.len.saturating_mul(size),
+                    total - pos
                 ))
             })?;
-        let data = &bytes[pos..pos + n];
-        if hex(&Sha256::digest(data)) != a.sha256 {
+        pos += n;
+        if !with_adam && a.name.starts_with("adam_") {
+            r.seek(SeekFrom::Start(pos)).map_err(io_err)?;
+            continue;
+        }
+        let mut hash = Sha256::new();
+        let (mut fv, mut uv) = (Vec::new(), Vec::new());
+        if size == 4 {
+            fv.reserve_exact(a.len as usize);
+        } else {
+            uv.reserve_exact(a.len as usize);
+        }
+        let mut left = n as usize;
+        while left > 0 {
+            let k = left.min(chunk.len());
+            r.read_exact(&mut chunk[..k]).map_err(io_err)?;
+            hash.update(&chunk[..k]);
+            if size == 4 {
+                fv.extend(
+                    chunk[..k]
+                        .chunks_exact(4)
+                        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))),
+                );
+            } else {
+                uv.extend(
+                    chunk[..k]
+                        .chunks_exact(8)
+                        .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes"))),
+                );
+            }
+            left -= k;
+        }
+        if hex(&hash.finalize()) != a.sha256 {
             return Err(bad(format!(
                 "corrupt: array '{}' fails its SHA-256 check",
                 a.name
             )));
         }
-        arrays.insert(a.name.clone(), data);
-        pos += n;
+        if size == 4 {
+            f32_arrays.insert(a.name.clone(), fv);
+        } else {
+            u64_arrays.insert(a.name.clone(), uv);
+        }
     }
-    if pos != bytes.len() {
+    if pos != total {
         return Err(bad(format!(
             "{} unexpected bytes after the last array",
-            bytes.len() - pos
+            total - pos
         )));
     }
-    let f32s = |name: &str, want: usize| -> Result<Option<Vec<f32>>> {
-        let Some(b) = arrays.get(name) else {
+    let mut f32s = |name: &str, want: usize| -> Result<Option<Vec<f32>>> {
+        let Some(v) = f32_arrays.remove(name) else {
             return Ok(None);
         };
-        if b.len() != want * 4 {
+        if v.len() != want {
             return Err(bad(format!(
                 "array '{name}' holds {} values, the dims need {want}",
-                b.len() / 4
+                v.len()
             )));
         }
-        Ok(Some(
-            b.chunks_exact(4)
-                .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-                .collect(),
-        ))
+        Ok(Some(v))
     };
     let grid = f32s("grid", nv * h.channels)?.ok_or_else(|| bad("no 'grid' array".into()))?;
-    let occ_b = arrays
-        .get("occupancy")
+    let occupancy = u64_arrays
+        .remove("occupancy")
         .ok_or_else(|| bad("no 'occupancy' array".into()))?;
-    if occ_b.len() != ncells.div_ceil(64) * 8 {
+    if occupancy.len() != ncells.div_ceil(64) {
         return Err(bad("array 'occupancy' does not match the dims".into()));
     }
-    let occupancy: Vec<u64> = occ_b
-        .chunks_exact(8)
-        .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
-        .collect();
     let adam = match (
         f32s("adam_m", nv * h.channels)?,
         f32s("adam_v", nv * h.channels)?,

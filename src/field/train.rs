@@ -210,15 +210,20 @@ impl Trainer {
         t
     }
 
-    /// A model file's content for this trainer (with optimiser state, so it can resume).
-    pub fn to_model(&self, world: [[f64; 4]; 4], notes: serde_json::Value) -> super::io::Model {
-        super::io::Model {
-            field: self.field.clone(),
+    /// What a model file holds for this trainer (with optimiser state, so it can resume),
+    /// borrowed: saving copies nothing.
+    pub fn parts(
+        &self,
+        world: [[f64; 4]; 4],
+        notes: serde_json::Value,
+    ) -> super::io::ModelParts<'_> {
+        super::io::ModelParts {
+            field: &self.field,
             final_dims: self.final_dims,
             world_transform: world,
-            train: Some(self.cfg.clone()),
+            train: Some(&self.cfg),
             step: self.step,
-            adam: Some((self.m.clone(), self.v.clone(), self.adam_t)),
+            adam: Some((&self.m, &self.v, self.adam_t)),
             notes,
         }
     }

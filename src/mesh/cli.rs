@@ -112,7 +112,7 @@ pub fn mesh_model(
     opts: &FieldMeshOptions,
     up: Option<DVec3>,
 ) -> Result<(Mesh, MeshOutput)> {
-    let model = crate::field::io::load(model_path)?;
+    let model = crate::field::io::load_field(model_path)?;
     let (mesh, report) = mesh_field(&model.field, name, opts)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
     let frame = frame_for_model(&model, up);
