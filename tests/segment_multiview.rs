@@ -134,8 +134,15 @@ fn run_demo(models: &ModelsDir) -> (Vec<(String, Scores, Scores)>, Counts) {
         })
         .collect();
     let opts = PropagationOptions::default();
-    let (report, objects) =
-        segment_scene(&scene, &prompts, &opts, &dir.path().join("seg"), false).unwrap();
+    let (report, objects) = segment_scene(
+        &scene,
+        &prompts,
+        &opts,
+        &dir.path().join("seg"),
+        false,
+        false,
+    )
+    .unwrap();
     assert!(dir.path().join("seg/report.json").is_file());
     for (t, obj) in truth.iter().zip(&objects) {
         assert!(dir
@@ -281,8 +288,15 @@ fn lego_from_one_click_matches_alpha() {
     let prompt = click(&scene, "lego", "r_0", 397.5, 492.5);
     let dir = tempfile::tempdir().unwrap();
     let opts = PropagationOptions::default();
-    let (_, objects) =
-        segment_scene(&scene, &[prompt], &opts, &dir.path().join("seg"), false).unwrap();
+    let (_, objects) = segment_scene(
+        &scene,
+        &[prompt],
+        &opts,
+        &dir.path().join("seg"),
+        false,
+        false,
+    )
+    .unwrap();
     let ious = view_ious(&objects[0], &truth);
     let worst = ious.iter().copied().fold(1.0, f64::min);
     let not_ok: Vec<&str> = objects[0]
@@ -306,7 +320,7 @@ fn lego_from_one_click_matches_alpha() {
     // A click on the white background: SAM masks the background; a clear error, nothing written.
     let out = dir.path().join("bg");
     let bg = click(&scene, "lego", "r_0", 40.0, 40.0);
-    let err = segment_scene(&scene, &[bg], &opts, &out, false)
+    let err = segment_scene(&scene, &[bg], &opts, &out, false, false)
         .err()
         .expect("a background click fails")
         .to_string();
@@ -322,6 +336,7 @@ fn lego_from_one_click_matches_alpha() {
         &[click(&bare, "lego", "r_0", 397.5, 492.5)],
         &opts,
         &out,
+        false,
         false,
     )
     .err()

@@ -141,10 +141,15 @@ pub fn extract(
     // The folder the final run will be at: paths in the report point there.
     let final_path = |p: &Path| out.join(p.strip_prefix(&root).unwrap_or(p));
 
-    let spinner = stage_spinner(opts, "segment", "SAM over every view");
     let seg_dir = root.join("segment");
-    let (seg_report, segs) = segment_scene(scene, prompts, &opts.propagation, &seg_dir, false)?;
-    spinner.finish_and_clear();
+    let (seg_report, segs) = segment_scene(
+        scene,
+        prompts,
+        &opts.propagation,
+        &seg_dir,
+        false,
+        opts.progress,
+    )?;
     let t_segment = t0.elapsed().as_secs_f64();
     let frame = GltfFrame::for_scene(scene);
     let up = DVec3::from_array(frame.up);
@@ -300,19 +305,4 @@ pub fn extract(
 pub fn write_report(path: &Path, report: &ExtractReport) -> Result<()> {
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::json(path, e))?;
     crate::util::atomic::write_bytes_atomic(path, json.as_bytes())
-}
-
-fn stage_spinner(opts: &ExtractOptions, stage: &str, msg: &str) -> indicatif::ProgressBar {
-    let s = indicatif::ProgressBar::new_spinner();
-    if !opts.progress {
-        s.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    s.set_style(
-        indicatif::ProgressStyle::with_template("{prefix:>9} {elapsed_precise} {spinner} {msg}")
-            .expect("valid template"),
-    );
-    s.set_prefix(stage.to_string());
-    s.set_message(msg.to_string());
-    s.enable_steady_tick(std::time::Duration::from_millis(200));
-    s
 }

@@ -189,13 +189,15 @@ fn sanitize(name: &str) -> Result<String> {
     Ok(name.to_string())
 }
 
-/// Segment and write everything under `out` (atomically).
+/// Segment and write everything under `out` (atomically); `progress`: a bar over the views
+/// (each object's pass over them) on stderr.
 pub fn segment_scene(
     scene: &Scene,
     prompts: &[ObjectPrompt],
     opts: &PropagationOptions,
     out: &Path,
     overwrite: bool,
+    progress: bool,
 ) -> Result<(SegmentReport, Vec<ObjectSegmentation>)> {
     let t0 = Instant::now();
     super::propagate::require_tracks(scene)?;
@@ -205,8 +207,13 @@ pub fn segment_scene(
     let dest = AtomicDir::new(out, overwrite)?;
     let models = ModelsDir::from_env()?;
     let seg = Segmenter::open(&models, 0)?;
-    let mut views = SamViews::new(&seg);
+    let bar = crate::util::progress::bar((scene.images.len() * prompts.len()) as u64, "segment");
+    if !progress {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let mut views = SamViews::new(&seg).with_progress(bar.clone());
     let objects = propagate_objects(scene, prompts, &mut views, opts)?;
+    bar.finish_and_clear();
     let t_prop = t0.elapsed().as_secs_f64();
     for o in &objects {
         write_object(scene, o, dest.path())?;
@@ -258,7 +265,7 @@ impl SegmentCmd {
             obstruction_coverage: self.obstruction_coverage,
             ..Default::default()
         };
-        let (report, _) = segment_scene(&scene, &prompts, &opts, &self.out, self.overwrite)?;
+        let (report, _) = segment_scene(&scene, &prompts, &opts, &self.out, self.overwrite, true)?;
         if self.json {
             println!(
                 "{}",

@@ -26,6 +26,8 @@ pub struct SamViews<'a> {
     /// mIoU(ok) up by 0.00-0.012 per object and obstruction F1 0.933 -> 1.0; one more decoder
     /// run (tens of ms) per mask.
     refine: usize,
+    /// Ticked once a view (not per refinement pass), with the view's name as its message.
+    progress: Option<indicatif::ProgressBar>,
     /// Time spent in the encoder (with its preprocessing) and in the decoder, seconds.
     pub encoder_seconds: f64,
     pub decoder_seconds: f64,
@@ -38,6 +40,7 @@ impl<'a> SamViews<'a> {
             last: None,
             zoom: None,
             refine: 1,
+            progress: None,
             encoder_seconds: 0.0,
             decoder_seconds: 0.0,
         }
@@ -45,6 +48,11 @@ impl<'a> SamViews<'a> {
 
     pub fn with_zoom(mut self, zoom: Option<ZoomOptions>) -> Self {
         self.zoom = zoom;
+        self
+    }
+
+    pub fn with_progress(mut self, bar: indicatif::ProgressBar) -> Self {
+        self.progress = Some(bar);
         self
     }
 
@@ -77,6 +85,9 @@ impl ViewSegmenter for SamViews<'_> {
         prompts: &[PointPrompt],
         bbox: Option<[f64; 4]>,
     ) -> Result<ViewMask> {
+        if let Some(bar) = &self.progress {
+            bar.set_message(scene.images[view].name.clone());
+        }
         let emb = self.embedding(scene, view)?;
         let p = Prompts {
             points: prompts
@@ -122,6 +133,9 @@ impl ViewSegmenter for SamViews<'_> {
             };
             m = self.seg.predict_allow_empty(&emb, &again)?;
             self.decoder_seconds += m.decoder_seconds;
+        }
+        if let Some(bar) = &self.progress {
+            bar.inc(1);
         }
         Ok(ViewMask {
             mask: m.to_image(),
