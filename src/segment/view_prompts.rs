@@ -15,6 +15,7 @@
 use super::propagate::{PointPrompt, PropagationOptions, Votes};
 use crate::scene::Scene;
 use glam::DVec2;
+use std::collections::HashMap;
 
 /// What SAM is given for one view.
 pub struct ViewPrompts {
@@ -115,17 +116,19 @@ fn projected_free_space(
     let im = &scene.images[v];
     let cam = scene.camera_of(im);
     let radius = opts.free_space_radius * cam.width.max(cam.height) as f64;
-    // The view's other features on a grid of `radius` cells, with their depth and vote.
-    let others: Vec<(DVec2, f64, bool)> = im
+    let others: Vec<Witness> = im
         .features
         .iter()
         .filter_map(|f| {
             let p = f.point.filter(|&p| !in_d[p])?;
-            let z = im.pose.world_to_camera(scene.points[p].xyz).z;
-            Some((f.xy, z, votes[p].is_outside()))
+            Some(Witness {
+                xy: f.xy,
+                depth: im.pose.world_to_camera(scene.points[p].xyz).z,
+                outside: votes[p].is_outside(),
+            })
         })
         .collect();
-    let grid = CellGrid::new(&others, radius);
+    let grid = WitnessGrid::new(&others, radius);
     let mut out = Vec::new();
     for (p, inside) in in_d.iter().enumerate() {
         if !inside {
@@ -135,9 +138,9 @@ fn projected_free_space(
         let Some(xy) = cam.project(q).filter(|xy| cam.contains(*xy)) else {
             continue;
         };
-        let contradicted = grid.near(xy).any(|&&(fxy, z, outside)| {
-            (fxy - xy).length() < radius
-                && (outside || (z - q.z).abs() > opts.free_space_depth * q.z)
+        let contradicted = grid.near(xy).any(|w| {
+            (w.xy - xy).length() < radius
+                && (w.outside || (w.depth - q.z).abs() > opts.free_space_depth * q.z)
         });
         if !contradicted {
             out.push(xy);
@@ -146,34 +149,42 @@ fn projected_free_space(
     out
 }
 
-/// Points bucketed in square cells of side `cell`, for "who is within `cell` of here".
-struct CellGrid<'a, T> {
-    cell: f64,
-    buckets: std::collections::HashMap<(i64, i64), Vec<&'a T>>,
+/// A feature of the view whose point is not in D: what the view saw at that pixel.
+struct Witness {
+    xy: DVec2,
+    /// Its point's depth in the view's camera.
+    depth: f64,
+    /// Its point was voted outside the object.
+    outside: bool,
 }
 
-impl<'a> CellGrid<'a, (DVec2, f64, bool)> {
-    fn new(items: &'a [(DVec2, f64, bool)], cell: f64) -> Self {
-        let mut buckets: std::collections::HashMap<(i64, i64), Vec<&'a _>> = Default::default();
-        for it in items {
-            let k = (
-                (it.0.x / cell).floor() as i64,
-                (it.0.y / cell).floor() as i64,
-            );
-            buckets.entry(k).or_default().push(it);
+/// Witnesses bucketed in square cells of side `cell`, for "who is within `cell` of here".
+struct WitnessGrid<'a> {
+    cell: f64,
+    buckets: HashMap<(i64, i64), Vec<&'a Witness>>,
+}
+
+impl<'a> WitnessGrid<'a> {
+    fn new(items: &'a [Witness], cell: f64) -> Self {
+        let mut buckets: HashMap<(i64, i64), Vec<&'a Witness>> = HashMap::new();
+        for w in items {
+            buckets.entry(Self::key(w.xy, cell)).or_default().push(w);
         }
-        CellGrid { cell, buckets }
+        WitnessGrid { cell, buckets }
     }
 
-    fn near(&self, xy: DVec2) -> impl Iterator<Item = &&'a (DVec2, f64, bool)> + '_ {
-        let (cx, cy) = (
-            (xy.x / self.cell).floor() as i64,
-            (xy.y / self.cell).floor() as i64,
-        );
+    fn key(xy: DVec2, cell: f64) -> (i64, i64) {
+        ((xy.x / cell).floor() as i64, (xy.y / cell).floor() as i64)
+    }
+
+    /// Witnesses in the 3 x 3 cells around `xy` (a superset of those within `cell`).
+    fn near(&self, xy: DVec2) -> impl Iterator<Item = &'a Witness> + '_ {
+        let (cx, cy) = Self::key(xy, self.cell);
         (-1..=1)
             .flat_map(move |dy| (-1..=1).map(move |dx| (cx + dx, cy + dy)))
             .filter_map(|k| self.buckets.get(&k))
             .flatten()
+            .copied()
     }
 }
 
