@@ -22,17 +22,7 @@ fn fox_head_from_one_click_in_every_view() {
         Some(p) => PathBuf::from(p),
         None => {
             let out = dir.path().join("fox_sfm");
-            let st = Command::new(common::objnerf_bin())
-                .args(["sfm", fox.join("transforms.json").to_str().unwrap()])
-                .args(["--out", out.to_str().unwrap()])
-                .args(["--downscale", "2", "--max-features", "4096"])
-                .output()
-                .unwrap();
-            assert!(
-                st.status.success(),
-                "{}",
-                String::from_utf8_lossy(&st.stderr)
-            );
+            common::sfm(&fox.join("transforms.json"), &out);
             out
         }
     };

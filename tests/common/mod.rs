@@ -92,8 +92,15 @@ pub fn lego_sfm_model() -> Option<PathBuf> {
             let _ = std::fs::remove_dir_all(old.path());
         }
     }
+    sfm(&lego.join("transforms_train.json"), &out);
+    Some(out)
+}
+
+/// `objnerf sfm INPUT --out OUT --downscale 2 --max-features 4096` (the settings the README and
+/// the tests use for the shared captures); panics with COLMAP's stderr when it fails.
+pub fn sfm(input: &std::path::Path, out: &std::path::Path) {
     let st = std::process::Command::new(objnerf_bin())
-        .args(["sfm", lego.join("transforms_train.json").to_str().unwrap()])
+        .args(["sfm", input.to_str().unwrap()])
         .args(["--out", out.to_str().unwrap(), "--overwrite"])
         .args(["--downscale", "2", "--max-features", "4096"])
         .output()
@@ -103,5 +110,4 @@ pub fn lego_sfm_model() -> Option<PathBuf> {
         "{}",
         String::from_utf8_lossy(&st.stderr)
     );
-    Some(out)
 }
