@@ -9,7 +9,6 @@
 mod common;
 
 use std::path::PathBuf;
-use std::process::Command;
 
 #[test]
 #[ignore = "COLMAP on fox takes 5-15 minutes; run with --ignored"]
@@ -27,19 +26,19 @@ fn fox_head_from_one_click_in_every_view() {
         }
     };
     let seg = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fox_seg");
-    let st = Command::new(common::objnerf_bin())
-        .args(["segment", sfm.to_str().unwrap()])
-        .args([
-            "--view", "0001.jpg", "--object", "fox", "--point", "660,700",
-        ])
-        .args(["--out", seg.to_str().unwrap(), "--overwrite"])
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    common::objnerf_ok(&[
+        "segment",
+        sfm.to_str().unwrap(),
+        "--view",
+        "0001.jpg",
+        "--object",
+        "fox",
+        "--point",
+        "660,700",
+        "--out",
+        seg.to_str().unwrap(),
+        "--overwrite",
+    ]);
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(seg.join("report.json")).unwrap()).unwrap();
     let views = report["objects"][0]["views"].as_array().unwrap();

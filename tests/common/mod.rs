@@ -99,15 +99,30 @@ pub fn lego_sfm_model() -> Option<PathBuf> {
 /// `objnerf sfm INPUT --out OUT --downscale 2 --max-features 4096` (the settings the README and
 /// the tests use for the shared captures); panics with COLMAP's stderr when it fails.
 pub fn sfm(input: &std::path::Path, out: &std::path::Path) {
-    let st = std::process::Command::new(objnerf_bin())
-        .args(["sfm", input.to_str().unwrap()])
-        .args(["--out", out.to_str().unwrap(), "--overwrite"])
-        .args(["--downscale", "2", "--max-features", "4096"])
+    objnerf_ok(&[
+        "sfm",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--overwrite",
+        "--downscale",
+        "2",
+        "--max-features",
+        "4096",
+    ]);
+}
+
+/// Run `objnerf ARGS`; panics with its stderr unless it succeeds.
+pub fn objnerf_ok(args: &[&str]) -> std::process::Output {
+    let out = std::process::Command::new(objnerf_bin())
+        .args(args)
         .output()
         .unwrap();
     assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+        out.status.success(),
+        "objnerf {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
     );
+    out
 }
