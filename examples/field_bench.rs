@@ -13,6 +13,10 @@
 //! between occupancy updates), FIELD_TV ("density,colour"), FIELD_LR ("density,colour"),
 //! FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB.
 
+#[path = "support/bench.rs"]
+mod bench;
+
+use bench::cpu_seconds;
 use objnerf::field::{self, MaskSource, SetupConfig, StopRule, TrainConfig};
 use std::path::PathBuf;
 
@@ -26,22 +30,10 @@ fn pair(name: &str) -> Option<(f32, f32)> {
     Some((a.parse().ok()?, b.parse().ok()?))
 }
 
-fn cpu_seconds() -> f64 {
-    // utime + stime of this process from /proc (Linux); 0 elsewhere.
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    let after = stat.rsplit(')').next().unwrap_or("");
-    let f: Vec<&str> = after.split_whitespace().collect();
-    let ticks: f64 = f.get(11).and_then(|v| v.parse().ok()).unwrap_or(0.0)
-        + f.get(12).and_then(|v| v.parse().ok()).unwrap_or(0.0);
-    ticks / 100.0
-}
-
 /// `demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]`: one demo object from its true masks,
-/// scored on the held-out views (`field::holdout::demo_object`).
+/// scored on the held-out views (`demo::holdout::demo_object`).
 fn demo(args: &[String]) -> objnerf::Result<()> {
-    use objnerf::field::holdout::{demo_object, DemoRun};
+    use objnerf::demo::holdout::{demo_object, DemoRun};
     let dir = PathBuf::from(&args[2]);
     let object = &args[3];
     let secs: f64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(30.0);
@@ -49,7 +41,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
         .get(5)
         .map(|s| s.parse().map_err(objnerf::Error::invalid))
         .transpose()?
-        .unwrap_or(field::commands::DepthMode::None);
+        .unwrap_or(field::DepthMode::None);
     let cpu0 = cpu_seconds();
     let r = demo_object(
         &dir,
@@ -65,7 +57,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
         },
     )?;
     let out = serde_json::json!({
-        "command": args.join(" "), "git_commit": objnerf::util::bench::git_commit(),
+        "command": args.join(" "), "git_commit": bench::git_commit(),
         "threads": rayon::current_num_threads(), "budget_s": secs,
         "depth_supervision": format!("{depth:?}"), "cpu_s": cpu_seconds() - cpu0,
         "peak_rss_mib": objnerf::util::mem::peak_rss_mib(), "report": r,
@@ -91,8 +83,8 @@ fn main() -> objnerf::Result<()> {
     let t0 = std::time::Instant::now();
     let train = objnerf::Scene::load(&dir.join("transforms_train.json"))?;
     let test = objnerf::Scene::load(&dir.join("transforms_test.json"))?;
-    let views = field::rays::load_views(&train, &MaskSource::Alpha, ds)?;
-    let test_views = field::rays::load_views(&test, &MaskSource::Alpha, ds)?;
+    let views = field::load_views(&train, &MaskSource::Alpha, ds)?;
+    let test_views = field::load_views(&test, &MaskSource::Alpha, ds)?;
     let load_s = t0.elapsed().as_secs_f64();
     let mut setup = SetupConfig {
         sh_degree: degree,
@@ -141,7 +133,8 @@ fn main() -> objnerf::Result<()> {
         window: 100,
     };
     let mut next_log = 0.0;
-    let summary = field::run(&mut trainer, &views, &rays, &stop, |s, t| {
+    let summary = field::run(&mut trainer, &views, &rays, &stop, |s| {
+        let t = s.seconds;
         if t >= next_log {
             eprintln!(
                 "t={t:.1}s step={} loss={:.5} psnr={:.2} samples/ray={:.1}",
@@ -157,7 +150,7 @@ fn main() -> objnerf::Result<()> {
         &field::RenderOptions::default(),
         &test_views,
     );
-    let commit = objnerf::util::bench::git_commit();
+    let commit = bench::git_commit();
     let out = serde_json::json!({
         "command": args.join(" "),
         "git_commit": commit,

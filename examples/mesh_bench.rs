@@ -7,9 +7,12 @@
 //! Writes `mesh_marching_cubes.json` and `mesh_marching_cubes.svg`. scikit-image runs in its own
 //! venv under the models dir (`$OBJNERF_HOME/venvs/bench-skimage`), created on first use.
 
+#[path = "support/bench.rs"]
+mod bench;
+
+use bench::{ensure_venv, git_commit, machine, Stats};
 use objnerf::mesh::marching::marching_cubes;
-use objnerf::segment::ModelsDir;
-use objnerf::util::bench::{ensure_venv, git_commit, machine, Stats};
+use objnerf::models::ModelsDir;
 use objnerf::util::{mem::peak_rss_mib, Rng};
 use std::path::PathBuf;
 use std::process::Command;

@@ -9,47 +9,28 @@
 //! Every method gets a fresh segmenter with a memory-only embedding cache, so each pays for its
 //! own encoder runs (the disk cache would make whichever runs second look free).
 
-use objnerf::demo::{read_truth, write_demo_scene, DemoOptions};
-use objnerf::segment::evaluate::{alpha_truth, demo_truth, oracle, view_ious};
-use objnerf::segment::propagate::{
-    projection_baseline, propagate_objects, ObjectPrompt, ObjectSegmentation, PointPrompt,
-    PropagationOptions, ViewStatus,
+#[path = "support/bench.rs"]
+mod bench;
+
+use bench::cpu_seconds;
+use image::GrayImage;
+use objnerf::demo::{read_truth, truth_masks, write_demo_scene, DemoOptions};
+use objnerf::models::ModelsDir;
+use objnerf::sam::{Segmenter, SegmenterOptions};
+use objnerf::segment::distance::most_interior_point;
+use objnerf::segment::evaluate::{alpha_truth, view_ious};
+use objnerf::segment::propagate::{projection_baseline, propagate_objects};
+use objnerf::segment::types::{ViewResult, ViewSegmenter};
+use objnerf::segment::{
+    ObjectPrompt, ObjectSegmentation, PointPrompt, PropagationOptions, SamViews, ViewStatus,
 };
-use objnerf::segment::scene_views::SamViews;
-use objnerf::segment::{ModelsDir, Segmenter, SegmenterOptions};
+use objnerf::util::mask::is_object;
+use objnerf::util::mem::peak_rss_mib;
+use objnerf::util::stats::mean;
 use objnerf::{Result, Scene};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
-
-/// utime + stime of this process (Linux /proc), seconds; 0 elsewhere.
-fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    let f: Vec<&str> = stat
-        .rsplit(')')
-        .next()
-        .unwrap_or("")
-        .split_whitespace()
-        .collect();
-    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (ticks(11) + ticks(12)) / 100.0
-}
-
-/// Peak resident set size of this process (VmHWM), MiB.
-fn peak_rss_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<f64>().ok())
-        })
-        .map(|kb| kb / 1024.0)
-        .unwrap_or(f64::NAN)
-}
 
 fn load_avg() -> String {
     std::fs::read_to_string("/proc/loadavg")
@@ -134,7 +115,7 @@ fn score(
     for (k, o) in objects.iter().enumerate() {
         let ious = view_ious(o, &truth.masks[k]);
         for (v, iou) in ious.iter().enumerate() {
-            if truth.masks[k][v].pixels().all(|p| p[0] <= 127) {
+            if truth.masks[k][v].pixels().all(|p| !is_object(p[0])) {
                 continue;
             }
             all.push(*iou);
@@ -148,7 +129,6 @@ fn score(
             }
         }
     }
-    let mean = objnerf::segment::evaluate::mean;
     let r = MethodResult {
         scene: scene_name.into(),
         method: method.into(),
@@ -205,10 +185,43 @@ fn compare(
     Ok(out)
 }
 
+/// The oracle: every view where the truth mask is not empty gets one click at its most interior
+/// point (what a person clicking each view would do); views with an empty truth stay absent.
+fn oracle(
+    scene: &Scene,
+    name: &str,
+    truth: &[GrayImage],
+    seg: &mut dyn ViewSegmenter,
+) -> Result<ObjectSegmentation> {
+    let mut views = Vec::with_capacity(scene.images.len());
+    for (v, (im, t)) in scene.images.iter().zip(truth).enumerate() {
+        let mut res = ViewResult::unsegmented(&im.name);
+        if let Some((x, y)) = most_interior_point(t) {
+            let prompts = vec![PointPrompt {
+                xy: [x, y],
+                positive: true,
+            }];
+            let m = seg.segment(scene, v, &prompts, None)?;
+            res.status = ViewStatus::Ok;
+            res.score = m.score;
+            res.num_prompts = 1;
+            res.prompts = prompts;
+            res.order = Some(v);
+            res.mask = Some(m.mask);
+        }
+        views.push(res);
+    }
+    Ok(ObjectSegmentation {
+        name: name.to_string(),
+        views,
+        points: vec![],
+    })
+}
+
 #[derive(Serialize)]
 struct Report<'a> {
     command: String,
-    machine: objnerf::segment::bench::Machine,
+    machine: bench::Machine,
     note: String,
     load_average_start: String,
     load_average_end: String,
@@ -219,7 +232,7 @@ struct Report<'a> {
     scaling: &'a [Scaling],
     three_over_one_wall: Option<f64>,
     three_over_one_cpu: Option<f64>,
-    peak_rss_mib: f64,
+    peak_rss_mib: u64,
     total_s: f64,
 }
 
@@ -250,7 +263,7 @@ fn main() -> Result<()> {
     let truth = Truth {
         masks: truths
             .iter()
-            .map(|t| demo_truth(&scene_dir, &scene, &t.name))
+            .map(|t| truth_masks(&scene_dir, &scene, &t.name))
             .collect::<Result<_>>()?,
         visible: truths
             .iter()
@@ -311,7 +324,7 @@ fn write_report(
         |f: fn(&Scaling) -> f64| (scaling.len() == 2).then(|| f(&scaling[1]) / f(&scaling[0]));
     let report = Report {
         command: args.join(" "),
-        machine: objnerf::segment::bench::machine(),
+        machine: bench::machine(),
         note: "shared machine: other jobs ran at the same time (see the load averages); CPU seconds are this process's".into(),
         load_average_start: load_start.to_string(),
         load_average_end: load_avg(),

@@ -1,15 +1,23 @@
-//! objnerf: pull one object out of a multi-view capture as its own radiance field and mesh
-//! (the Obj-NeRF method, CVPR 2024). The modules follow the pipeline: `scene` (capture formats in),
-//! `demo` (the built-in synthetic scene), `segment` (SAM and multi-view propagation), and the
-//! stages after it. See ARCHITECTURE.md.
+//! objnerf: pull objects out of a multi-view capture as their own radiance fields and meshes (the
+//! Obj-NeRF method, CVPR 2024). The modules follow the pipeline, and dependencies point one way
+//! (ARCHITECTURE.md; `tests/architecture.rs` checks it):
+//!
+//! ```text
+//! util ← scene ← (sam, models, segment, field) ← (mesh, render, eval, demo) ← pipeline ← cli
+//! ```
+//!
+//! The command line (`src/cli/`, part of the `objnerf` binary) is a thin layer over this library:
+//! library code takes typed options, returns values and reports, and never prints.
 
 pub mod demo;
 pub mod error;
 pub mod eval;
-pub mod extract;
 pub mod field;
-pub mod info;
 pub mod mesh;
+pub mod models;
+pub mod pipeline;
+pub mod render;
+pub mod sam;
 pub mod scene;
 pub mod segment;
 pub mod util;

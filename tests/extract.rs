@@ -7,7 +7,7 @@ use objnerf::demo::{read_truth, write_demo_scene, DemoOptions};
 use objnerf::eval::chamfer::chamfer_distance;
 use objnerf::field::{io as model_io, Field, FieldConfig};
 use objnerf::mesh::io::read_ply;
-use objnerf::segment::ModelsDir;
+use objnerf::models::ModelsDir;
 use std::path::Path;
 use std::process::Command;
 
@@ -246,4 +246,57 @@ fn mesh_command_errors_are_clear() {
     let missing = dir.path().join("nope.objf");
     let (ok, err) = mesh_cmd(&[missing.as_os_str(), "--out".as_ref(), glb.as_os_str()]);
     assert!(!ok && err.contains("nope.objf"), "{err}");
+}
+
+/// A COLMAP model whose image names hold a folder (`sub/view_000.png`, as with one folder per
+/// camera): `extract` writes the masks under the same sub-folder and trains on them.
+#[test]
+fn a_capture_with_images_in_sub_folders_extracts() {
+    use objnerf::scene::formats::colmap::{write_model, ModelFormat};
+    if !sam_installed() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let demo = dir.path().join("demo");
+    let opts = DemoOptions {
+        views: 12,
+        ..Default::default()
+    };
+    write_demo_scene(&opts, &demo).unwrap();
+    let truth = read_truth(&demo).unwrap();
+    let mut scene = objnerf::Scene::load(&demo.join("sparse/0")).unwrap();
+    let capture = dir.path().join("capture");
+    std::fs::create_dir_all(capture.join("images/sub")).unwrap();
+    for im in &mut scene.images {
+        let dest = capture.join("images/sub").join(&im.name);
+        std::fs::copy(&im.path, &dest).unwrap();
+        im.name = format!("sub/{}", im.name);
+        im.path = dest;
+    }
+    write_model(&scene, &capture.join("sparse/0"), ModelFormat::Binary).unwrap();
+    let mug = truth.iter().find(|t| t.name == "mug").unwrap();
+    let run = dir.path().join("run");
+    let out = Command::new(common::objnerf_bin())
+        .arg("extract")
+        .arg(&capture)
+        .args(["--view", &format!("sub/{}", mug.view), "--object", "mug"])
+        .arg("--point")
+        .arg(format!("{},{}", mug.click[0], mug.click[1]))
+        .arg("--out")
+        .arg(&run)
+        .args(["--steps", "60", "--time-budget", "100000", "--frames", "2"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "extract on sub-folder image names failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for im in &scene.images {
+        let mask = run
+            .join("segment/masks/mug")
+            .join(Path::new(&im.name).with_extension("png"));
+        assert!(mask.is_file(), "{} is missing", mask.display());
+    }
+    assert!(run.join("mug/model.objf").is_file());
 }

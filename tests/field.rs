@@ -10,7 +10,7 @@ fn lego_views(split: &str, downscale: u32, every: usize) -> Option<Vec<View>> {
     let dir = common::shared_data("lego")?;
     let mut scene = objnerf::Scene::load(&dir.join(format!("transforms_{split}.json"))).unwrap();
     scene.images = scene.images.into_iter().step_by(every).collect();
-    Some(field::rays::load_views(&scene, &MaskSource::Alpha, downscale).unwrap())
+    Some(field::load_views(&scene, &MaskSource::Alpha, downscale).unwrap())
 }
 
 fn small_cfg(steps: usize) -> TrainConfig {
@@ -125,7 +125,7 @@ fn truncated_or_corrupt_model_files_are_clear_errors() {
     let bytes = std::fs::read(&p).unwrap();
     let m = io::load(&p).unwrap();
     assert_eq!(m.field.grid.dims, [5, 6, 7]);
-    assert_eq!(field::commands::model_downscale(&m), 2);
+    assert_eq!(m.downscale(), 2);
 
     let cut = dir.path().join("cut.objf");
     std::fs::write(&cut, &bytes[..bytes.len() - 100]).unwrap();
@@ -375,7 +375,7 @@ fn lego_200_reaches_28_db_within_5_minutes() {
         plateau_db: None,
         window: 500,
     };
-    let run = field::run(&mut t, &views, &rays, &stop, |_, _| {});
+    let run = field::run(&mut t, &views, &rays, &stop, |_| {});
     let ev = field::eval::evaluate(&t.field, &field::RenderOptions::default(), &test);
     eprintln!(
         "lego 200^2: {} steps in {:.0} s ({:.0} rays/s), grid {:?}, {:.1}% rays pruned: test PSNR {:.2} dB, SSIM {:.4}",

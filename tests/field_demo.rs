@@ -4,10 +4,9 @@
 
 mod common;
 
+use objnerf::demo::holdout::{demo_object, DemoReport, DemoRun};
 use objnerf::demo::{write_demo_scene, DemoOptions};
-use objnerf::field::commands::DepthMode;
-use objnerf::field::holdout::{demo_object, DemoReport, DemoRun};
-use objnerf::field::{StopRule, TrainConfig};
+use objnerf::field::{DepthMode, StopRule, TrainConfig};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

@@ -5,8 +5,10 @@
 mod common;
 
 use image::GrayImage;
-use objnerf::segment::models::{install, InstallOptions};
-use objnerf::segment::{distance, view, ModelsDir, Prompts, Segmenter, SegmenterOptions};
+use objnerf::models::{install, InstallOptions, ModelsDir};
+use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
+use objnerf::scene::io::read_rgb;
+use objnerf::segment::distance;
 use objnerf::Error;
 use std::sync::{Mutex, OnceLock};
 
@@ -61,7 +63,7 @@ fn lego() -> Option<(image::RgbImage, Vec<bool>)> {
     let path = common::shared_data("lego")?.join("train/r_0.png");
     let rgba = image::open(&path).expect("lego r_0.png").to_rgba8();
     let truth = rgba.pixels().map(|p| p[3] > 127).collect();
-    Some((view::load_rgb(&path).unwrap(), truth))
+    Some((read_rgb(&path).unwrap(), truth))
 }
 
 fn to_gray(b: &[bool], w: u32, h: u32) -> GrayImage {
@@ -241,7 +243,7 @@ fn a_missing_library_or_model_is_an_error_naming_the_install_command() {
     let tmp = tempfile::tempdir().unwrap();
     let empty = ModelsDir::at(tmp.path());
     for e in [
-        Segmenter::open(&empty, 1).err().expect("no library"),
+        empty.segmenter(1).err().expect("no library"),
         empty.require_sam().expect_err("no models"),
         Segmenter::from_files(
             &tmp.path().join("libonnxruntime.so.1.31.1"),
@@ -408,7 +410,7 @@ fn demo_scene_each_object_one_click_in_view_0() {
     assert!(!objects.is_empty());
     let mut worst = 1.0f64;
     for o in &objects {
-        let img = view::load_rgb(&out.join("images").join(&o.view)).unwrap();
+        let img = read_rgb(&out.join("images").join(&o.view)).unwrap();
         let truth = image::open(out.join("truth/masks").join(&o.name).join(&o.view))
             .unwrap()
             .to_luma8();
@@ -426,10 +428,9 @@ fn demo_scene_each_object_one_click_in_view_0() {
     assert!(worst >= 0.90, "worst IoU {worst:.4} < 0.90");
 
     // The same through the propagation's interface (the scene read back by `Scene::load`).
-    use objnerf::segment::propagate::{PointPrompt, ViewSegmenter};
+    use objnerf::segment::types::{PointPrompt, ViewSegmenter};
     let scene = objnerf::Scene::load(&out).unwrap();
-    let mut views =
-        objnerf::segment::scene_views::SamViews::new(seg).with_zoom(Some(Default::default()));
+    let mut views = objnerf::segment::SamViews::new(seg).with_zoom(Some(Default::default()));
     for o in &objects {
         let v = scene.find_image(&o.view).unwrap();
         let p = [PointPrompt {
@@ -443,7 +444,7 @@ fn demo_scene_each_object_one_click_in_view_0() {
         let t: Vec<bool> = truth.pixels().map(|p| p[0] > 127).collect();
         let got: Vec<bool> = m.mask.pixels().map(|p| p[0] > 127).collect();
         assert!(
-            objnerf::segment::mask::iou(&got, &t) >= 0.90,
+            objnerf::util::mask::iou_bits(got, t) >= 0.90,
             "{} through SamViews",
             o.name
         );

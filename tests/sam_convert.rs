@@ -6,12 +6,16 @@
 mod common;
 
 use image::{GrayImage, RgbImage};
-use objnerf::segment::convert::{self, torch::StateDict};
-use objnerf::segment::models::{
-    install, sha256_file, InstallOptions, CHECKPOINT_SHA256, CONVERTED_DECODER_SHA256,
+use objnerf::models::{
+    install, InstallOptions, ModelsDir, CHECKPOINT_SHA256, CONVERTED_DECODER_SHA256,
     CONVERTED_ENCODER_SHA256,
 };
-use objnerf::segment::{distance, mask, view, ModelsDir, Prompts, Segmenter, SegmenterOptions};
+use objnerf::sam::convert::{self, torch::StateDict};
+use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
+use objnerf::scene::io::read_rgb;
+use objnerf::segment::distance;
+use objnerf::util::digest::sha256_file;
+use objnerf::util::mask::iou_bits;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
@@ -72,7 +76,7 @@ fn images(tmp: &Path) -> Vec<(String, RgbImage, Vec<bool>)> {
         let path = lego.join("train/r_0.png");
         let rgba = image::open(&path).unwrap().to_rgba8();
         let truth = rgba.pixels().map(|p| p[3] > 127).collect();
-        out.push(("lego r_0".into(), view::load_rgb(&path).unwrap(), truth));
+        out.push(("lego r_0".into(), read_rgb(&path).unwrap(), truth));
     }
     let demo = tmp.join("demo");
     let opts = objnerf::demo::DemoOptions {
@@ -83,7 +87,7 @@ fn images(tmp: &Path) -> Vec<(String, RgbImage, Vec<bool>)> {
     let objects = objnerf::demo::read_truth(&demo).unwrap();
     for v in [0, 2, 4] {
         let name = objnerf::demo::view_name(v);
-        let img = view::load_rgb(&demo.join("images").join(&name)).unwrap();
+        let img = read_rgb(&demo.join("images").join(&name)).unwrap();
         let mut taken = 0;
         for o in &objects {
             let t = image::open(demo.join("truth/masks").join(&o.name).join(&name)).unwrap();
@@ -155,7 +159,10 @@ fn converted_models_match_the_reference_export() {
             let r = refs.predict_allow_empty(&er, &p).unwrap();
             let o = ours.predict_allow_empty(&er, &p).unwrap();
             let e2e = ours.predict_allow_empty(&eo, &p).unwrap();
-            let (iou, iou_e2e) = (mask::iou(&o.bitmap, &r.bitmap), e2e.iou(&r.bitmap));
+            let (iou, iou_e2e) = (
+                iou_bits(o.bitmap.iter().copied(), r.bitmap.iter().copied()),
+                e2e.iou(&r.bitmap),
+            );
             let label = format!(
                 "{name}: {} points, box {}, mask input {}",
                 p.points.len(),
@@ -353,7 +360,7 @@ fn models_install_into_an_empty_home_then_segment_a_demo_view() {
         .pixels()
         .map(|p| p[0] > 127)
         .collect();
-    let iou = mask::iou(&got, &truth);
+    let iou = iou_bits(got, truth);
     println!(
         "{} in {}: IoU {iou:.4} with the installed models",
         o0.name, o0.view

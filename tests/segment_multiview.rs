@@ -3,15 +3,17 @@
 mod common;
 
 use objnerf::demo::{read_truth, write_demo_scene, DemoOptions};
-use objnerf::segment::evaluate::{alpha_truth, mean, view_ious};
-use objnerf::segment::hull::iou;
-use objnerf::segment::propagate::{
-    projection_baseline, propagate_objects, ObjectPrompt, ObjectSegmentation, PointPrompt,
-    PropagationOptions, ViewStatus,
+use objnerf::models::ModelsDir;
+use objnerf::sam::Segmenter;
+use objnerf::segment::evaluate::{alpha_truth, view_ious};
+use objnerf::segment::propagate::{projection_baseline, propagate_objects};
+use objnerf::segment::{
+    segment_scene, ObjectPrompt, ObjectSegmentation, PointPrompt, PropagationOptions, SamViews,
+    ViewStatus,
 };
-use objnerf::segment::run::segment_scene;
-use objnerf::segment::scene_views::SamViews;
-use objnerf::segment::{ModelsDir, Segmenter};
+use objnerf::util::mask::iou;
+use objnerf::util::stats::mean;
+use objnerf::util::Silent;
 use objnerf::Scene;
 
 fn models() -> Option<ModelsDir> {
@@ -134,13 +136,15 @@ fn run_demo(models: &ModelsDir) -> (Vec<(String, Scores, Scores)>, Counts) {
         })
         .collect();
     let opts = PropagationOptions::default();
+    let seg = models.segmenter(0).unwrap();
     let (report, objects) = segment_scene(
         &scene,
         &prompts,
         &opts,
+        &seg,
         &dir.path().join("seg"),
         false,
-        false,
+        &Silent,
     )
     .unwrap();
     assert!(dir.path().join("seg/report.json").is_file());
@@ -168,7 +172,6 @@ fn run_demo(models: &ModelsDir) -> (Vec<(String, Scores, Scores)>, Counts) {
         report.encoder_runs
     );
 
-    let seg = Segmenter::open(models, 0).unwrap();
     let mut views = SamViews::new(&seg);
     let mut pooled = Counts {
         tp: 0,
@@ -279,7 +282,7 @@ fn click(scene: &Scene, name: &str, view: &str, x: f64, y: f64) -> ObjectPrompt 
 /// builds, shared): mIoU >= 0.95 over the 100 views against alpha, every view marked ok.
 #[test]
 fn lego_from_one_click_matches_alpha() {
-    let Some(_models) = models() else { return };
+    let Some(models) = models() else { return };
     let Some(model) = common::lego_sfm_model() else {
         return;
     };
@@ -288,13 +291,15 @@ fn lego_from_one_click_matches_alpha() {
     let prompt = click(&scene, "lego", "r_0", 397.5, 492.5);
     let dir = tempfile::tempdir().unwrap();
     let opts = PropagationOptions::default();
+    let seg = models.segmenter(0).unwrap();
     let (_, objects) = segment_scene(
         &scene,
         &[prompt],
         &opts,
+        &seg,
         &dir.path().join("seg"),
         false,
-        false,
+        &Silent,
     )
     .unwrap();
     let ious = view_ious(&objects[0], &truth);
@@ -320,7 +325,7 @@ fn lego_from_one_click_matches_alpha() {
     // A click on the white background: SAM masks the background; a clear error, nothing written.
     let out = dir.path().join("bg");
     let bg = click(&scene, "lego", "r_0", 40.0, 40.0);
-    let err = segment_scene(&scene, &[bg], &opts, &out, false, false)
+    let err = segment_scene(&scene, &[bg], &opts, &seg, &out, false, &Silent)
         .err()
         .expect("a background click fails")
         .to_string();
@@ -335,9 +340,10 @@ fn lego_from_one_click_matches_alpha() {
         &bare,
         &[click(&bare, "lego", "r_0", 397.5, 492.5)],
         &opts,
+        &seg,
         &out,
         false,
-        false,
+        &Silent,
     )
     .err()
     .expect("a view without tracks fails")

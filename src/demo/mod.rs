@@ -20,7 +20,7 @@
 //! `seed`, and the parallel rendering writes each pixel from its position alone.
 
 pub mod geometry;
-pub mod job;
+pub mod holdout;
 pub mod mesh;
 pub mod render;
 pub mod texture;
@@ -28,7 +28,7 @@ pub mod tracks;
 pub mod writer;
 
 pub use geometry::{World, OBJECT_NAMES};
-pub use writer::{read_truth, ObjectTruth};
+pub use writer::{read_truth, truth_masks, ObjectTruth};
 
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};

@@ -3,6 +3,7 @@
 
 use super::render::ViewRender;
 use crate::error::{Error, Result};
+use crate::scene::io::{mask_file, write_depth_exr, DepthMap};
 use crate::util::atomic::save_image_atomic;
 use crate::util::write_atomic;
 use image::{DynamicImage, GrayImage, ImageBuffer, Luma, RgbImage};
@@ -39,6 +40,17 @@ pub fn read_truth(scene_dir: &Path) -> Result<Vec<ObjectTruth>> {
     Ok(file.objects)
 }
 
+/// Every view's true mask of `object` (`truth/masks/<object>/`), in the scene's image order.
+pub fn truth_masks(scene_dir: &Path, scene: &crate::Scene, object: &str) -> Result<Vec<GrayImage>> {
+    use rayon::prelude::*;
+    let dir = scene_dir.join("truth/masks").join(object);
+    scene
+        .images
+        .par_iter()
+        .map(|im| crate::scene::io::read_mask(&mask_file(&dir, &im.name)))
+        .collect()
+}
+
 pub fn write_truth(path: &Path, objects: &[ObjectTruth]) -> Result<()> {
     let file = ObjectsFile {
         objects: objects.to_vec(),
@@ -66,7 +78,14 @@ pub fn write_view(root: &Path, name: &str, w: u32, h: u32, r: &ViewRender) -> Re
         Luma([(d * 1000.0).round().clamp(0.0, 65535.0) as u16])
     });
     save_image_atomic(&png, &DynamicImage::ImageLuma16(mm))?;
-    write_exr_depth(&exr, w, h, &r.depth)?;
+    write_depth_exr(
+        &exr,
+        &DepthMap {
+            width: w,
+            height: h,
+            metres: r.depth.clone(),
+        },
+    )?;
 
     for (i, obj) in super::OBJECT_NAMES.iter().enumerate() {
         let mask = GrayImage::from_fn(w, h, |x, y| {
@@ -76,62 +95,10 @@ pub fn write_view(root: &Path, name: &str, w: u32, h: u32, r: &ViewRender) -> Re
                 0
             }])
         });
-        let path = root.join("truth/masks").join(obj).join(name);
+        let path = mask_file(&root.join("truth/masks").join(obj), name);
         save_image_atomic(&path, &DynamicImage::ImageLuma8(mask))?;
     }
     Ok(())
-}
-
-/// Write a depth map (metres) as an uncompressed scanline OpenEXR with the depth in its R, G and
-/// B channels (f32), so any reader finds it in the first channel. Written by hand because the
-/// image crate's encoder writes blocks in completion order (line order RANDOM_Y), which makes
-/// the bytes differ between runs; this file has increasing line order and is byte-stable.
-pub fn write_exr_depth(path: &Path, w: u32, h: u32, depth: &[f32]) -> Result<()> {
-    fn attr(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
-        out.extend_from_slice(name.as_bytes());
-        out.push(0);
-        out.extend_from_slice(kind.as_bytes());
-        out.push(0);
-        out.extend_from_slice(&(value.len() as i32).to_le_bytes());
-        out.extend_from_slice(value);
-    }
-    let i32s = |v: &[i32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-    let mut out = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
-    let mut chlist = Vec::new();
-    // Channels in alphabetical order, as OpenEXR requires: FLOAT (2), linear 0, sampling 1x1.
-    for name in ["B", "G", "R"] {
-        chlist.extend_from_slice(name.as_bytes());
-        chlist.push(0);
-        chlist.extend_from_slice(&i32s(&[2, 0, 1, 1]));
-    }
-    chlist.push(0);
-    attr(&mut out, "channels", "chlist", &chlist);
-    attr(&mut out, "compression", "compression", &[0]);
-    let window = i32s(&[0, 0, w as i32 - 1, h as i32 - 1]);
-    attr(&mut out, "dataWindow", "box2i", &window);
-    attr(&mut out, "displayWindow", "box2i", &window);
-    attr(&mut out, "lineOrder", "lineOrder", &[0]);
-    attr(&mut out, "pixelAspectRatio", "float", &1f32.to_le_bytes());
-    attr(&mut out, "screenWindowCenter", "v2f", &[0; 8]);
-    attr(&mut out, "screenWindowWidth", "float", &1f32.to_le_bytes());
-    out.push(0);
-    // Offset table: one uncompressed scanline per block.
-    let row_bytes = 3 * 4 * w as usize;
-    let first = out.len() + 8 * h as usize;
-    for y in 0..h as usize {
-        out.extend_from_slice(&((first + y * (8 + row_bytes)) as u64).to_le_bytes());
-    }
-    for y in 0..h as usize {
-        out.extend_from_slice(&(y as i32).to_le_bytes());
-        out.extend_from_slice(&(row_bytes as i32).to_le_bytes());
-        let row = &depth[y * w as usize..(y + 1) * w as usize];
-        for _channel in 0..3 {
-            for d in row {
-                out.extend_from_slice(&d.to_le_bytes());
-            }
-        }
-    }
-    write_atomic(path, |wr| wr.write_all(&out))
 }
 
 /// Where a view's truth depth maps go (PNG millimetres, EXR metres).
@@ -184,19 +151,6 @@ pub fn farthest_interior(mask: &[bool], w: usize, h: usize) -> Option<[f64; 2]> 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn exr_depth_reads_back_exactly() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("d.exr");
-        let (w, h) = (7, 5);
-        let depth: Vec<f32> = (0..w * h).map(|i| 0.25 + i as f32 * 0.37).collect();
-        write_exr_depth(&p, w, h, &depth).unwrap();
-        let img = image::open(&p).unwrap().to_rgb32f();
-        assert_eq!(img.dimensions(), (w, h));
-        let back: Vec<f32> = img.pixels().map(|px| px[0]).collect();
-        assert_eq!(back, depth);
-    }
 
     #[test]
     fn farthest_interior_of_a_square_is_its_centre() {

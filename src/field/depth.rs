@@ -2,7 +2,7 @@
 //! style) and dense (depth images). Both become per-pixel distances along the unit ray on the
 //! training views, kept only inside the object's mask: the field holds the object alone.
 
-use super::rays::View;
+use super::view::View;
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use rayon::prelude::*;

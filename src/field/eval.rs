@@ -1,9 +1,12 @@
 //! Rendering whole views (RGB, depth, alpha; multi-threaded by rows) and scoring them: PSNR and
 //! SSIM against the truth composited on white (the NeRF-synthetic protocol).
 
+use super::io::Model;
 use super::model::Field;
-use super::rays::View;
 use super::render::{render_ray, RenderOptions};
+use super::view::{load_views, MaskSource, RayCamera, View};
+use crate::error::Result;
+use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -18,7 +21,7 @@ pub struct Rendered {
     pub depth: Vec<f32>,
 }
 
-pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) -> Rendered {
+pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3]) -> Rendered {
     let (w, h) = (view.width, view.height);
     let rows: Vec<Vec<(f32, f32, [f32; 3])>> = (0..h)
         .into_par_iter()
@@ -51,6 +54,24 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &View, bg: [f32; 3]) ->
         out.rgb.push(c);
     }
     out
+}
+
+impl Rendered {
+    /// The colour as an 8-bit RGB image.
+    pub fn rgb8(&self) -> image::RgbImage {
+        image::RgbImage::from_fn(self.width, self.height, |x, y| {
+            let p = self.rgb[(y * self.width + x) as usize];
+            image::Rgb(p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
+        })
+    }
+
+    /// The opacity as an 8-bit grey image.
+    pub fn alpha8(&self) -> image::GrayImage {
+        image::GrayImage::from_fn(self.width, self.height, |x, y| {
+            let a = self.alpha[(y * self.width + x) as usize];
+            image::Luma([(a.clamp(0.0, 1.0) * 255.0).round() as u8])
+        })
+    }
 }
 
 /// A view's truth composited on a background.
@@ -153,7 +174,7 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
     let scores: Vec<ViewScore> = views
         .iter()
         .map(|v| {
-            let r = render_view(f, opt, v, white);
+            let r = render_view(f, opt, &v.cam, white);
             let t = truth_on(v, white);
             ViewScore {
                 name: v.name.clone(),
@@ -170,6 +191,19 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
         views: scores,
         seconds: start.elapsed().as_secs_f64(),
     }
+}
+
+/// Score a model on a scene's views, with `masks` as the truth's alpha, at `downscale` (default:
+/// the one it was trained at), rendering with the default sampling (half-voxel steps) however
+/// coarsely training sampled.
+pub fn evaluate_model(
+    model: &Model,
+    scene: &Scene,
+    masks: &MaskSource,
+    downscale: Option<u32>,
+) -> Result<EvalReport> {
+    let views = load_views(scene, masks, downscale.unwrap_or_else(|| model.downscale()))?;
+    Ok(evaluate(&model.field, &RenderOptions::default(), &views))
 }
 
 #[cfg(test)]

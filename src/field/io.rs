@@ -17,8 +17,9 @@
 //! array ends, so a truncated or corrupted file is an error that says what is wrong.
 
 use super::model::{sh_coeffs, Field, FieldConfig};
-use super::train::TrainConfig;
+use super::train::{TrainConfig, Trainer};
 use crate::error::{Error, Result};
+use crate::util::digest::hex;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -104,6 +105,54 @@ impl Model {
     }
 }
 
+impl Model {
+    /// The downscale the model was trained at (1 if it does not say).
+    pub fn downscale(&self) -> u32 {
+        self.notes
+            .get("downscale")
+            .and_then(|v| v.as_u64())
+            .map(|v| v.max(1) as u32)
+            .unwrap_or(1)
+    }
+
+    /// The capture's up direction recorded at training ([`crate::Scene::up`]), if any.
+    pub fn up(&self) -> Option<glam::DVec3> {
+        let v = self.notes.get("up")?.as_array()?;
+        let xyz: Vec<f64> = v.iter().filter_map(|x| x.as_f64()).collect();
+        (xyz.len() == 3).then(|| glam::DVec3::new(xyz[0], xyz[1], xyz[2]))
+    }
+}
+
+impl Trainer {
+    /// Continue from a saved model: its grid, step and (if saved) optimiser state. The saved
+    /// training settings win over `cfg` except for the step count, so a resumed run follows the
+    /// same schedule.
+    pub fn from_model(m: Model, cfg: TrainConfig) -> Trainer {
+        let mut c = m.train.clone().unwrap_or(cfg.clone());
+        c.steps = c.steps.max(cfg.steps);
+        let mut t = Trainer::new(m.field, m.final_dims, c);
+        t.step = m.step;
+        if let Some((am, av, at)) = m.adam {
+            t.set_adam_state(am, av, at);
+        }
+        t
+    }
+
+    /// What a model file holds for this trainer (with optimiser state, so it can resume),
+    /// borrowed: saving copies nothing.
+    pub fn parts(&self, world: [[f64; 4]; 4], notes: serde_json::Value) -> ModelParts<'_> {
+        ModelParts {
+            field: &self.field,
+            final_dims: self.final_dims,
+            world_transform: world,
+            train: Some(&self.cfg),
+            step: self.step,
+            adam: Some(self.adam_state()),
+            notes,
+        }
+    }
+}
+
 /// An array to write, as its values; turned into little-endian bytes a chunk at a time.
 enum Blob<'a> {
     F32(&'a [f32]),
@@ -159,10 +208,6 @@ impl Blob<'_> {
         .expect("hashing does not fail");
         hex(&h.finalize())
     }
-}
-
-fn hex(d: &[u8]) -> String {
-    d.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
@@ -227,12 +272,66 @@ pub fn load_field(path: &Path) -> Result<Model> {
 /// Read a model file as a stream: the arrays go straight into their typed vectors, so the
 /// file's bytes are never held whole.
 fn read(path: &Path, with_adam: bool) -> Result<Model> {
-    use std::io::{Read, Seek, SeekFrom};
-    let bad = |msg: String| Error::format(path, msg);
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let total = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut r = std::io::BufReader::with_capacity(1 << 20, file);
-    let io_err = |e: std::io::Error| Error::io(path, e);
+    let (h, start) = read_header(path, &mut r, total)?;
+    let mut arrays = read_arrays(path, &mut r, &h, start, total, with_adam)?;
+    let bad = |msg: String| Error::format(path, msg);
+    let nv: usize = h.dims.iter().product();
+    let ncells: usize = h.dims.iter().map(|d| d - 1).product();
+    let mut f32s = |name: &str, want: usize| -> Result<Option<Vec<f32>>> {
+        let Some(v) = arrays.f32s.remove(name) else {
+            return Ok(None);
+        };
+        if v.len() != want {
+            return Err(bad(format!(
+                "array '{name}' holds {} values, the dims need {want}",
+                v.len()
+            )));
+        }
+        Ok(Some(v))
+    };
+    let grid = f32s("grid", nv * h.channels)?.ok_or_else(|| bad("no 'grid' array".into()))?;
+    let occupancy = arrays
+        .u64s
+        .remove("occupancy")
+        .ok_or_else(|| bad("no 'occupancy' array".into()))?;
+    if occupancy.len() != ncells.div_ceil(64) {
+        return Err(bad("array 'occupancy' does not match the dims".into()));
+    }
+    let adam = match (
+        f32s("adam_m", nv * h.channels)?,
+        f32s("adam_v", nv * h.channels)?,
+    ) {
+        (Some(m), Some(v)) => Some((m, v, h.adam_t)),
+        _ => None,
+    };
+    let mut field = Field::new(
+        h.config.clone(),
+        Vec3::from_array(h.box_min),
+        Vec3::from_array(h.box_max),
+        h.dims,
+    );
+    field.voxel = h.voxel;
+    field.grid.data = grid;
+    field.occupancy = occupancy;
+    field.rebuild_blocks();
+    Ok(Model {
+        field,
+        final_dims: h.final_dims,
+        world_transform: h.world_transform,
+        train: h.train,
+        step: h.step,
+        adam,
+        notes: h.notes,
+    })
+}
+
+/// The magic, the header length and the header, checked for consistency; returns the header
+/// and the offset where the arrays start.
+fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(Header, u64)> {
+    let bad = |msg: String| Error::format(path, msg);
     let mut start = [0u8; 16];
     if total < 16 || r.read_exact(&mut start).is_err() || &start[..8] != MAGIC {
         return Err(bad(
@@ -248,7 +347,7 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
         )));
     }
     let mut hbytes = vec![0u8; hlen as usize];
-    r.read_exact(&mut hbytes).map_err(io_err)?;
+    r.read_exact(&mut hbytes).map_err(|e| Error::io(path, e))?;
     let h: Header =
         serde_json::from_slice(&hbytes).map_err(|e| bad(format!("corrupt header: {e}")))?;
     if h.format != "objnerf-field" {
@@ -275,11 +374,30 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
             h.dims, h.voxel
         )));
     }
-    let nv: usize = h.dims.iter().product();
-    let ncells: usize = h.dims.iter().map(|d| d - 1).product();
-    let mut pos = 16 + hlen;
-    let mut f32_arrays: std::collections::HashMap<String, Vec<f32>> = Default::default();
-    let mut u64_arrays: std::collections::HashMap<String, Vec<u64>> = Default::default();
+    Ok((h, 16 + hlen))
+}
+
+/// The arrays a header lists, by name and type.
+#[derive(Default)]
+struct Arrays {
+    f32s: std::collections::HashMap<String, Vec<f32>>,
+    u64s: std::collections::HashMap<String, Vec<u64>>,
+}
+
+/// Read the header's arrays from `pos` on, each checked against its length (before anything is
+/// allocated) and hash; the optimiser state is skipped unless `with_adam`. The file must end
+/// where the last array ends.
+fn read_arrays<R: std::io::Read + std::io::Seek>(
+    path: &Path,
+    r: &mut R,
+    h: &Header,
+    mut pos: u64,
+    total: u64,
+    with_adam: bool,
+) -> Result<Arrays> {
+    let bad = |msg: String| Error::format(path, msg);
+    let io_err = |e: std::io::Error| Error::io(path, e);
+    let mut out = Arrays::default();
     let mut chunk = vec![0u8; 1 << 16];
     for a in &h.arrays {
         let size: u64 = match a.dtype.as_str() {
@@ -301,7 +419,7 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
             })?;
         pos += n;
         if !with_adam && a.name.starts_with("adam_") {
-            r.seek(SeekFrom::Start(pos)).map_err(io_err)?;
+            r.seek(std::io::SeekFrom::Start(pos)).map_err(io_err)?;
             continue;
         }
         let mut hash = Sha256::new();
@@ -338,9 +456,9 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
             )));
         }
         if size == 4 {
-            f32_arrays.insert(a.name.clone(), fv);
+            out.f32s.insert(a.name.clone(), fv);
         } else {
-            u64_arrays.insert(a.name.clone(), uv);
+            out.u64s.insert(a.name.clone(), uv);
         }
     }
     if pos != total {
@@ -349,49 +467,5 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
             total - pos
         )));
     }
-    let mut f32s = |name: &str, want: usize| -> Result<Option<Vec<f32>>> {
-        let Some(v) = f32_arrays.remove(name) else {
-            return Ok(None);
-        };
-        if v.len() != want {
-            return Err(bad(format!(
-                "array '{name}' holds {} values, the dims need {want}",
-                v.len()
-            )));
-        }
-        Ok(Some(v))
-    };
-    let grid = f32s("grid", nv * h.channels)?.ok_or_else(|| bad("no 'grid' array".into()))?;
-    let occupancy = u64_arrays
-        .remove("occupancy")
-        .ok_or_else(|| bad("no 'occupancy' array".into()))?;
-    if occupancy.len() != ncells.div_ceil(64) {
-        return Err(bad("array 'occupancy' does not match the dims".into()));
-    }
-    let adam = match (
-        f32s("adam_m", nv * h.channels)?,
-        f32s("adam_v", nv * h.channels)?,
-    ) {
-        (Some(m), Some(v)) => Some((m, v, h.adam_t)),
-        _ => None,
-    };
-    let mut field = Field::new(
-        h.config.clone(),
-        Vec3::from_array(h.box_min),
-        Vec3::from_array(h.box_max),
-        h.dims,
-    );
-    field.voxel = h.voxel;
-    field.grid.data = grid;
-    field.occupancy = occupancy;
-    field.rebuild_blocks();
-    Ok(Model {
-        field,
-        final_dims: h.final_dims,
-        world_transform: h.world_transform,
-        train: h.train,
-        step: h.step,
-        adam,
-        notes: h.notes,
-    })
+    Ok(out)
 }

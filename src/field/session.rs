@@ -2,9 +2,11 @@
 //! memory budget) → carved occupancy → rays pruned to the box → a [`Trainer`] run until the step
 //! count, a time budget or a PSNR plateau.
 
+use super::bounds::{choose_voxel, hull_box, visual_hull};
 use super::model::{Field, FieldConfig};
-use super::rays::{choose_voxel, hull_box, visual_hull, RaySet, View};
+use super::rays::RaySet;
 use super::train::{stage_dims, StepStats, TrainConfig, Trainer};
+use super::view::View;
 use crate::error::Result;
 use glam::Vec3;
 use serde::Serialize;
@@ -144,13 +146,14 @@ pub struct RunSummary {
     pub stopped_by: String,
 }
 
-/// Train until `trainer.cfg.steps`, the time budget or a plateau; `progress` sees every step.
+/// Train until `trainer.cfg.steps`, the time budget or a plateau; `progress` sees every step
+/// (with its time and rate filled in).
 pub fn run(
     trainer: &mut Trainer,
     views: &[View],
     rays: &RaySet,
     stop: &StopRule,
-    mut progress: impl FnMut(&StepStats, f64),
+    mut progress: impl FnMut(&StepStats),
 ) -> RunSummary {
     let start = Instant::now();
     let first_step = trainer.step;
@@ -165,7 +168,10 @@ pub fn run(
         }
         last = trainer.train_step(views, rays);
         let secs = start.elapsed().as_secs_f64();
-        progress(&last, secs);
+        last.seconds = secs;
+        last.rays_per_second =
+            ((trainer.step - first_step) * trainer.cfg.batch) as f64 / secs.max(1e-9);
+        progress(&last);
         window_sum += last.psnr as f64;
         if trainer.step % w == 0 {
             let mean = window_sum / w as f64;

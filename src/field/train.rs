@@ -9,8 +9,9 @@
 
 use super::grid::Grid;
 use super::model::Field;
-use super::rays::{RaySet, View};
+use super::rays::RaySet;
 use super::render::{backward, distortion, forward, RenderOptions, Sample};
+use super::view::View;
 use crate::util::Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -89,6 +90,21 @@ pub struct StepStats {
     /// PSNR of the batch's colours (on their random backgrounds).
     pub psnr: f32,
     pub samples_per_ray: f32,
+    /// Seconds since the run began, and rays per second over them (set by
+    /// [`super::session::run`]; 0 from a lone [`Trainer::train_step`]).
+    pub seconds: f64,
+    pub rays_per_second: f64,
+}
+
+impl StepStats {
+    /// The step as a progress detail.
+    pub fn detail(&self) -> crate::util::Detail<'static> {
+        crate::util::Detail::Training {
+            loss: self.loss,
+            psnr: self.psnr,
+            rays_per_second: self.rays_per_second,
+        }
+    }
 }
 
 const CHUNK: usize = 256;
@@ -194,38 +210,6 @@ impl Trainer {
         self.v = vec![0.0; n];
         self.stamp = vec![0; self.field.grid.num_vertices()];
         self.adam_t = 0;
-    }
-
-    /// Continue from a saved model: its grid, step and (if saved) optimiser state. The saved
-    /// training settings win over `cfg` except for the step count, so a resumed run follows the
-    /// same schedule.
-    pub fn from_model(m: super::io::Model, cfg: TrainConfig) -> Trainer {
-        let mut c = m.train.clone().unwrap_or(cfg.clone());
-        c.steps = c.steps.max(cfg.steps);
-        let mut t = Trainer::new(m.field, m.final_dims, c);
-        t.step = m.step;
-        if let Some((am, av, at)) = m.adam {
-            t.set_adam_state(am, av, at);
-        }
-        t
-    }
-
-    /// What a model file holds for this trainer (with optimiser state, so it can resume),
-    /// borrowed: saving copies nothing.
-    pub fn parts(
-        &self,
-        world: [[f64; 4]; 4],
-        notes: serde_json::Value,
-    ) -> super::io::ModelParts<'_> {
-        super::io::ModelParts {
-            field: &self.field,
-            final_dims: self.final_dims,
-            world_transform: world,
-            train: Some(&self.cfg),
-            step: self.step,
-            adam: Some((&self.m, &self.v, self.adam_t)),
-            notes,
-        }
     }
 
     /// Optimiser state (m, v, step count) for saving a resumable model.
@@ -416,6 +400,7 @@ impl Trainer {
             loss: (loss / n) as f32,
             psnr: (-10.0 * (mse / n).max(1e-12).log10()) as f32,
             samples_per_ray: nsamp as f32 / n as f32,
+            ..Default::default()
         }
     }
 

@@ -2,10 +2,10 @@
 //!
 //! Capture worlds disagree on "up": NeRF-synthetic, nerfstudio, Blender and the demo scene are
 //! +Z up, a COLMAP reconstruction is whatever its first camera made it. The cameras say which way
-//! is up (people hold cameras upright), so the up direction is the mean of the cameras' up vectors,
-//! snapped to a world axis when it is within 15 degrees of one (so a Z-up capture gets exactly the
-//! axis swap Blender's importer undoes).
+//! is up ([`Scene::up`]); a Z-up capture gets exactly the axis swap Blender's importer undoes.
 
+use crate::error::{Error, Result};
+use crate::field::io::Model;
 use crate::scene::Scene;
 use glam::{DMat4, DQuat, DVec3};
 use serde::Serialize;
@@ -51,58 +51,37 @@ impl GltfFrame {
         }
     }
 
-    /// Up from the scene's cameras (see the module notes).
-    pub fn for_scene(scene: &Scene) -> GltfFrame {
-        let mut sum = DVec3::ZERO;
-        for im in &scene.images {
-            // OpenCV camera: y points down in the image, so up is -y.
-            sum -= im.pose.c2w_rotation().col(1);
+    /// The frame of a model: `up` if given, else the up direction recorded at training, else the
+    /// cameras of the scene it was trained on (older model files), else an error asking for it.
+    pub fn for_model(model: &Model, up: Option<DVec3>) -> Result<GltfFrame> {
+        if let Some(u) = up {
+            return Ok(GltfFrame::from_up(u, "given with --up".into()));
         }
-        if sum.length() < 1e-9 {
-            return GltfFrame::from_up(DVec3::Z, "no camera agrees on up: assumed +Z".into());
+        if let Some(u) = model.up() {
+            let why = model
+                .notes
+                .get("up_why")
+                .and_then(|w| w.as_str())
+                .unwrap_or("");
+            return Ok(GltfFrame::from_up(
+                u,
+                format!("recorded at training: {why}"),
+            ));
         }
-        let mean = sum.normalize();
-        let axes = [
-            DVec3::X,
-            DVec3::NEG_X,
-            DVec3::Y,
-            DVec3::NEG_Y,
-            DVec3::Z,
-            DVec3::NEG_Z,
-        ];
-        let best = axes
-            .into_iter()
-            .max_by(|a, b| a.dot(mean).total_cmp(&b.dot(mean)))
-            .expect("six axes");
-        let angle = best.dot(mean).clamp(-1.0, 1.0).acos().to_degrees();
-        if angle <= 15.0 {
-            GltfFrame::from_up(
-                best,
-                format!(
-                    "the cameras' mean up is {angle:.1} deg from world {}: snapped to it",
-                    axis_name(best)
-                ),
-            )
-        } else {
-            GltfFrame::from_up(
-                mean,
-                format!(
-                    "the cameras' mean up ({:.3}, {:.3}, {:.3}) is {angle:.1} deg from the nearest axis: used as is",
-                    mean.x, mean.y, mean.z
-                ),
-            )
+        let scene = model.notes.get("scene").and_then(|s| s.as_str());
+        match scene.map(|s| Scene::load(std::path::Path::new(s))) {
+            Some(Ok(s)) => Ok(GltfFrame::for_scene(&s)),
+            _ => Err(Error::invalid(format!(
+                "the model records no up direction and its training scene ({}) cannot be read: give --up",
+                scene.unwrap_or("unknown")
+            ))),
         }
     }
-}
 
-fn axis_name(a: DVec3) -> &'static str {
-    match (a.x, a.y, a.z) {
-        (x, _, _) if x > 0.5 => "+X",
-        (x, _, _) if x < -0.5 => "-X",
-        (_, y, _) if y > 0.5 => "+Y",
-        (_, y, _) if y < -0.5 => "-Y",
-        (_, _, z) if z > 0.5 => "+Z",
-        _ => "-Z",
+    /// Up from the scene's cameras ([`Scene::up`]).
+    pub fn for_scene(scene: &Scene) -> GltfFrame {
+        let (up, why) = scene.up();
+        GltfFrame::from_up(up, why)
     }
 }
 

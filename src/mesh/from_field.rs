@@ -7,12 +7,14 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
+use super::frame::GltfFrame;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::model::{sigmoid, Field};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::path::{Path, PathBuf};
 
 /// How to cut a field into a mesh.
 #[derive(Clone, Debug)]
@@ -280,6 +282,43 @@ pub fn fill_cavities(values: &mut [f32], [nx, ny, nz]: [usize; 3], iso: f32) -> 
         }
     }
     filled
+}
+
+/// What `objnerf mesh` wrote.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeshOutput {
+    pub path: PathBuf,
+    pub mesh: FieldMeshReport,
+    pub frame: GltfFrame,
+    /// Bounds in the capture's world units (before the glTF frame change).
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+}
+
+/// Load a model, mesh it and write the mesh.
+pub fn mesh_model(
+    model_path: &Path,
+    out: &Path,
+    name: &str,
+    opts: &FieldMeshOptions,
+    up: Option<DVec3>,
+) -> Result<(Mesh, MeshOutput)> {
+    let model = crate::field::io::load_field(model_path)?;
+    let frame = GltfFrame::for_model(&model, up)?;
+    let (mesh, report) = mesh_field(&model.field, name, opts)
+        .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
+    super::io::write_mesh(&mesh, &frame, out)?;
+    let (lo, hi) = mesh.bounds();
+    Ok((
+        mesh,
+        MeshOutput {
+            path: out.to_path_buf(),
+            mesh: report,
+            frame,
+            bounds_min: lo,
+            bounds_max: hi,
+        },
+    ))
 }
 
 #[cfg(test)]

@@ -1,7 +1,8 @@
 //! Plain mesh formats: binary PLY (with normals and colours) and Wavefront OBJ.
 
+use super::frame::GltfFrame;
 use super::Mesh;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::util::write_atomic;
 use std::path::Path;
 
@@ -98,4 +99,23 @@ pub fn read_ply(path: &Path) -> Result<Mesh> {
     };
     m.compute_normals();
     Ok(m)
+}
+
+/// Write `mesh` (in the capture's world units) to `path`, its format by extension.
+pub fn write_mesh(mesh: &Mesh, frame: &GltfFrame, path: &Path) -> Result<()> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let mut turned = mesh.clone();
+    turned.transform(frame.matrix());
+    match ext.as_str() {
+        "glb" => super::gltf::write_glb(&turned, path, Some(frame.extras())),
+        "obj" => write_obj(&turned, path),
+        "ply" => write_ply(mesh, path),
+        _ => Err(Error::invalid(format!(
+            "{}: unknown mesh format '{ext}' (use .glb, .obj or .ply)",
+            path.display()
+        ))),
+    }
 }

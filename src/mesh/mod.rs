@@ -1,7 +1,6 @@
 //! Meshes out of object fields: marching cubes, cleanup (welded by construction, small pieces
 //! removed, normals), and writers for glTF binary, PLY and OBJ.
 
-pub mod cli;
 pub mod frame;
 pub mod from_field;
 pub mod gltf;

@@ -199,6 +199,47 @@ fn check_rigid(r: DMat3) -> Result<(), String> {
     Ok(())
 }
 
+/// The world's up direction from the cameras (people hold cameras upright): the mean of their
+/// up vectors (-y of the OpenCV camera), snapped to a world axis when within 15 degrees of one.
+/// Returns it with a sentence saying how it was found.
+pub fn up_from_cameras<'a>(poses: impl IntoIterator<Item = &'a Pose>) -> (DVec3, String) {
+    let mut sum = DVec3::ZERO;
+    for pose in poses {
+        sum -= pose.c2w_rotation().col(1);
+    }
+    if sum.length() < 1e-9 {
+        return (DVec3::Z, "no camera agrees on up: assumed +Z".into());
+    }
+    let mean = sum.normalize();
+    let axes = [
+        (DVec3::X, "+X"),
+        (DVec3::NEG_X, "-X"),
+        (DVec3::Y, "+Y"),
+        (DVec3::NEG_Y, "-Y"),
+        (DVec3::Z, "+Z"),
+        (DVec3::NEG_Z, "-Z"),
+    ];
+    let (best, name) = axes
+        .into_iter()
+        .max_by(|a, b| a.0.dot(mean).total_cmp(&b.0.dot(mean)))
+        .expect("six axes");
+    let angle = best.dot(mean).clamp(-1.0, 1.0).acos().to_degrees();
+    if angle <= 15.0 {
+        (
+            best,
+            format!("the cameras' mean up is {angle:.1} deg from world {name}: snapped to it"),
+        )
+    } else {
+        (
+            mean,
+            format!(
+                "the cameras' mean up ({:.3}, {:.3}, {:.3}) is {angle:.1} deg from the nearest axis: used as is",
+                mean.x, mean.y, mean.z
+            ),
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

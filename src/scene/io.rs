@@ -2,8 +2,8 @@
 
 use crate::error::{Error, Result};
 use crate::util::atomic::{save_image_atomic, write_bytes_atomic};
-use image::{DynamicImage, GrayImage, ImageBuffer, Luma};
-use std::path::Path;
+use image::{DynamicImage, GrayImage, ImageBuffer, Luma, RgbImage};
+use std::path::{Component, Path, PathBuf};
 
 /// A depth map in metres; 0 (or non-finite) means unknown.
 #[derive(Clone, Debug, PartialEq)]
@@ -41,7 +41,7 @@ pub fn read_depth(path: &Path, scale: f64) -> Result<DepthMap> {
             path.display()
         )));
     }
-    let img = image::open(path).map_err(|e| Error::image(path, e))?;
+    let img = read_image(path)?;
     let (width, height) = (img.width(), img.height());
     let raw: Vec<u16> = match img {
         DynamicImage::ImageLuma16(b) => b.into_raw(),
@@ -138,51 +138,162 @@ pub fn write_depth_png_mm(path: &Path, depth: &DepthMap) -> Result<()> {
     save_image_atomic(path, &DynamicImage::ImageLuma16(buf))
 }
 
-/// Write a depth map as a one-channel ("Y") 32-bit float EXR in metres (0 = unknown), atomically.
+/// Write a depth map as a one-channel ("Y") 32-bit float OpenEXR in metres (0 = unknown),
+/// atomically: uncompressed scanlines in increasing order, written by hand because encoders that
+/// compress blocks in parallel write them in completion order, so their bytes differ between
+/// runs; these files are byte-stable.
 pub fn write_depth_exr(path: &Path, depth: &DepthMap) -> Result<()> {
-    use exr::prelude::{
-        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec,
-        WritableImage,
-    };
     check_len(path, depth)?;
-    let values = depth
-        .metres
-        .iter()
-        .map(|&d| if d.is_finite() && d > 0.0 { d } else { 0.0 })
-        .collect();
-    let channel = AnyChannel::new("Y", FlatSamples::F32(values));
-    let layer = Layer::new(
-        (depth.width as usize, depth.height as usize),
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(SmallVec::from_vec(vec![channel])),
-    );
-    let mut buf = std::io::Cursor::new(Vec::new());
-    Image::from_layer(layer)
-        .write()
-        .to_buffered(&mut buf)
-        .map_err(|e| Error::format(path, format!("cannot encode EXR depth: {e}")))?;
-    write_bytes_atomic(path, buf.get_ref())
+    let (w, h) = (depth.width as usize, depth.height as usize);
+    fn attr(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
+        out.extend_from_slice(name.as_bytes());
+        out.push(0);
+        out.extend_from_slice(kind.as_bytes());
+        out.push(0);
+        out.extend_from_slice(&(value.len() as i32).to_le_bytes());
+        out.extend_from_slice(value);
+    }
+    let i32s = |v: &[i32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let mut out = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+    // One channel "Y": FLOAT (2), linear 0, sampling 1x1.
+    let mut chlist = b"Y\0".to_vec();
+    chlist.extend_from_slice(&i32s(&[2, 0, 1, 1]));
+    chlist.push(0);
+    attr(&mut out, "channels", "chlist", &chlist);
+    attr(&mut out, "compression", "compression", &[0]);
+    let window = i32s(&[0, 0, w as i32 - 1, h as i32 - 1]);
+    attr(&mut out, "dataWindow", "box2i", &window);
+    attr(&mut out, "displayWindow", "box2i", &window);
+    attr(&mut out, "lineOrder", "lineOrder", &[0]);
+    attr(&mut out, "pixelAspectRatio", "float", &1f32.to_le_bytes());
+    attr(&mut out, "screenWindowCenter", "v2f", &[0; 8]);
+    attr(&mut out, "screenWindowWidth", "float", &1f32.to_le_bytes());
+    out.push(0);
+    // Offset table: one uncompressed scanline per block.
+    let row_bytes = 4 * w;
+    let first = out.len() + 8 * h;
+    for y in 0..h {
+        out.extend_from_slice(&((first + y * (8 + row_bytes)) as u64).to_le_bytes());
+    }
+    for (y, row) in depth.metres.chunks(w.max(1)).enumerate().take(h) {
+        out.extend_from_slice(&(y as i32).to_le_bytes());
+        out.extend_from_slice(&(row_bytes as i32).to_le_bytes());
+        for &d in row {
+            let d = if d.is_finite() && d > 0.0 { d } else { 0.0 };
+            out.extend_from_slice(&d.to_le_bytes());
+        }
+    }
+    write_bytes_atomic(path, &out)
 }
 
-/// Read a mask as one 8-bit channel, object where > 127: the alpha channel of images that have
-/// one (an RGBA cut-out), else the luma.
+/// The image files objnerf reads (by extension, any case).
+pub const IMAGE_EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
+
+/// Whether `path` names an image objnerf reads (by its extension; the file is not opened).
+pub fn is_image(path: &Path) -> bool {
+    path.extension().is_some_and(|e| {
+        let e = e.to_string_lossy().to_ascii_lowercase();
+        IMAGE_EXTENSIONS.contains(&e.as_str())
+    })
+}
+
+/// Open an image file of any supported format.
+pub fn read_image(path: &Path) -> Result<DynamicImage> {
+    image::open(path).map_err(|e| Error::image(path, e))
+}
+
+/// Read a colour image as 8-bit RGB. Images with alpha (NeRF-synthetic's RGBA) are composited
+/// onto white, the standard protocol for those datasets, so transparent pixels do not become
+/// black.
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    Ok(rgb_on_white(&read_image(path)?))
+}
+
+/// An image as 8-bit RGB, alpha composited onto white.
+pub fn rgb_on_white(img: &DynamicImage) -> RgbImage {
+    if !img.color().has_alpha() {
+        return img.to_rgb8();
+    }
+    let rgba = img.to_rgba8();
+    RgbImage::from_fn(rgba.width(), rgba.height(), |x, y| {
+        let p = rgba.get_pixel(x, y);
+        let a = p[3] as f32 / 255.0;
+        let c = |v: u8| (v as f32 * a + 255.0 * (1.0 - a)).round() as u8;
+        image::Rgb([c(p[0]), c(p[1]), c(p[2])])
+    })
+}
+
+/// Which channel of an image file a mask was taken from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaskChannel {
+    /// The alpha channel: the image is a cut-out (its alpha varies).
+    Alpha,
+    /// The luma: a single-channel mask (or a colour image with constant alpha).
+    Luma,
+}
+
+/// Read a mask as one 8-bit channel (object where [`crate::util::mask::is_object`]). The one
+/// rule for which channel: the alpha of an image whose alpha varies (an RGBA cut-out, a
+/// NeRF-synthetic view), else the luma. Masks saved as RGBA with an opaque alpha thus read by
+/// their grey values, not as all-object.
 pub fn read_mask(path: &Path) -> Result<GrayImage> {
-    let img = image::open(path).map_err(|e| Error::image(path, e))?;
+    read_mask_channel(path).map(|(m, _)| m)
+}
+
+/// [`read_mask`], also saying which channel the mask came from.
+pub fn read_mask_channel(path: &Path) -> Result<(GrayImage, MaskChannel)> {
+    let img = read_image(path)?;
     if img.color().has_alpha() {
         let rgba = img.to_rgba8();
-        let (w, h) = rgba.dimensions();
-        let alpha = rgba.pixels().map(|p| p.0[3]).collect();
-        return GrayImage::from_raw(w, h, alpha)
-            .ok_or_else(|| Error::format(path, "mask size mismatch"));
+        let first = rgba.pixels().next().map_or(255, |p| p.0[3]);
+        if rgba.pixels().any(|p| p.0[3] != first) {
+            let (w, h) = rgba.dimensions();
+            let alpha = rgba.pixels().map(|p| p.0[3]).collect();
+            let m = GrayImage::from_raw(w, h, alpha)
+                .ok_or_else(|| Error::format(path, "mask size mismatch"))?;
+            return Ok((m, MaskChannel::Alpha));
+        }
     }
-    Ok(img.to_luma8())
+    Ok((img.to_luma8(), MaskChannel::Luma))
 }
 
-/// Read a colour image as 8-bit RGB.
-pub fn read_rgb(path: &Path) -> Result<image::RgbImage> {
-    let img = image::open(path).map_err(|e| Error::image(path, e))?;
-    Ok(img.to_rgb8())
+/// Where the mask of the image named `image_name` lies under a masks folder: the image's name
+/// (its sub-folders kept) with the extension `.png` (`sub/view_035.jpg` -> `sub/view_035.png`).
+/// The one rule, used by every writer and reader of mask folders. Components that would leave
+/// the folder (`..`, a root) are dropped.
+pub fn mask_file(dir: &Path, image_name: &str) -> PathBuf {
+    let rel: PathBuf = Path::new(image_name)
+        .components()
+        .filter_map(|c| match c {
+            Component::Normal(s) => Some(s),
+            _ => None,
+        })
+        .collect();
+    dir.join(rel.with_extension("png"))
+}
+
+/// The mask of `image_name` in a folder: [`mask_file`]'s path, else (for folders made by other
+/// tools) a file named like the image, or its stem with a png/jpg extension, at the top level.
+pub fn find_mask(dir: &Path, image_name: &str) -> Result<PathBuf> {
+    let p = Path::new(image_name);
+    let mut cands = vec![mask_file(dir, image_name), dir.join(image_name)];
+    if let Some(fname) = p.file_name() {
+        cands.push(dir.join(fname));
+    }
+    if let Some(stem) = p.file_stem() {
+        for ext in ["png", "jpg", "jpeg"] {
+            cands.push(dir.join(format!("{}.{ext}", stem.to_string_lossy())));
+        }
+    }
+    cands.into_iter().find(|c| c.is_file()).ok_or_else(|| {
+        Error::format(
+            dir,
+            format!(
+                "no mask for view '{image_name}' in this folder (looked for {})",
+                mask_file(Path::new(""), image_name).display()
+            ),
+        )
+    })
 }
 
 #[cfg(test)]
@@ -215,6 +326,13 @@ mod tests {
         let p = dir.path().join("d.exr");
         write_depth_exr(&p, &sample()).unwrap();
         assert_eq!(read_depth(&p, 1000.0).unwrap(), sample());
+        // Byte-stable, and readable by a second decoder (the image crate's).
+        let bytes = std::fs::read(&p).unwrap();
+        write_depth_exr(&p, &sample()).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), bytes);
+        let img = image::open(&p).unwrap().to_rgb32f();
+        let back: Vec<f32> = img.pixels().map(|px| px[0]).collect();
+        assert_eq!(back, sample().metres);
         let q = dir.path().join("d8.png");
         GrayImage::new(2, 2).save(&q).unwrap();
         assert!(read_depth(&q, 1000.0)
@@ -233,6 +351,30 @@ mod tests {
         DynamicImage::ImageRgb32F(img).save(&p).unwrap();
         let d = read_depth(&p, 1000.0).unwrap();
         assert_eq!(d.metres, vec![1.5, 2.5, 1.5, 2.5]);
+    }
+
+    #[test]
+    fn mask_names_keep_folders() {
+        let d = Path::new("m");
+        assert_eq!(
+            mask_file(d, "sub/view_035.jpg"),
+            Path::new("m/sub/view_035.png")
+        );
+        assert_eq!(mask_file(d, "../x/./r_0.png"), Path::new("m/x/r_0.png"));
+        assert_eq!(mask_file(d, "view_000.png"), Path::new("m/view_000.png"));
+        assert!(is_image(Path::new("a/B.JPG")) && !is_image(Path::new("a/b.txt")));
+    }
+
+    #[test]
+    fn opaque_rgba_mask_reads_luma() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.png");
+        let mut img = image::RgbaImage::new(2, 1);
+        img.put_pixel(0, 0, image::Rgba([0, 0, 0, 255]));
+        img.put_pixel(1, 0, image::Rgba([255, 255, 255, 255]));
+        img.save(&p).unwrap();
+        assert_eq!(read_mask_channel(&p).unwrap().1, MaskChannel::Luma);
+        assert_eq!(read_mask(&p).unwrap().as_raw(), &vec![0, 255]);
     }
 
     #[test]

@@ -5,6 +5,7 @@
 pub mod camera;
 pub mod formats;
 pub mod frames;
+pub mod info;
 pub mod io;
 pub mod sfm;
 
@@ -101,6 +102,12 @@ impl Scene {
     /// an LLFF folder (`poses_bounds.npy`), or a Redwood RGB-D folder (`trajectory.log`).
     pub fn load(path: &Path) -> Result<Scene> {
         formats::load(path)
+    }
+
+    /// The world's up direction, from the cameras ([`frames::up_from_cameras`]), and how it was
+    /// found.
+    pub fn up(&self) -> (DVec3, String) {
+        frames::up_from_cameras(self.images.iter().map(|im| &im.pose))
     }
 
     pub fn camera_of(&self, image: &ImageView) -> &Camera {

@@ -9,7 +9,9 @@
 
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};
+use crate::scene::io::{is_image, read_image};
 use crate::scene::{Scene, SourceFormat};
+use crate::util::{Detail, Progress};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -57,6 +59,8 @@ pub struct SfmReport {
     pub mean_track_length: f64,
     pub seconds: f64,
     pub model_dir: PathBuf,
+    /// Image pairs matched when they were chosen from the poses (triangulation).
+    pub matched_pairs: Option<usize>,
 }
 
 /// What `objnerf sfm` was given.
@@ -70,17 +74,6 @@ pub enum SfmInput {
 fn has_images(dir: &Path) -> bool {
     std::fs::read_dir(dir)
         .map(|d| d.flatten().any(|e| is_image(&e.path())))
-        .unwrap_or(false)
-}
-
-fn is_image(p: &Path) -> bool {
-    p.extension()
-        .map(|e| {
-            matches!(
-                e.to_string_lossy().to_lowercase().as_str(),
-                "png" | "jpg" | "jpeg" | "tif" | "tiff" | "bmp"
-            )
-        })
         .unwrap_or(false)
 }
 
@@ -123,9 +116,37 @@ pub fn colmap_program() -> Result<PathBuf> {
     ))
 }
 
-fn run_colmap(program: &Path, args: &[String], log: &Path) -> Result<()> {
+/// COLMAP's programs as one progress stage of three steps (features, matching, mapping or
+/// triangulation).
+struct Steps<'a> {
+    progress: &'a dyn Progress,
+    done: std::cell::Cell<u64>,
+}
+
+impl<'a> Steps<'a> {
+    fn new(progress: &'a dyn Progress) -> Self {
+        progress.begin("colmap", 3);
+        Steps {
+            progress,
+            done: std::cell::Cell::new(0),
+        }
+    }
+
+    fn finished(&self, program: &str) {
+        self.done.set(self.done.get() + 1);
+        self.progress
+            .advance(self.done.get(), Detail::Item(program));
+    }
+}
+
+impl Drop for Steps<'_> {
+    fn drop(&mut self) {
+        self.progress.end();
+    }
+}
+
+fn run_colmap(program: &Path, args: &[String], log: &Path, steps: &Steps) -> Result<()> {
     let stage = args.first().cloned().unwrap_or_default();
-    eprintln!("  colmap {stage} ...");
     let out = Command::new(program)
         .args(args)
         .env("QT_QPA_PLATFORM", "offscreen")
@@ -156,6 +177,7 @@ fn run_colmap(program: &Path, args: &[String], log: &Path) -> Result<()> {
             format!("failed ({}); log {}:\n{tail}", out.status, log.display()),
         ));
     }
+    steps.finished(&stage);
     Ok(())
 }
 
@@ -183,7 +205,7 @@ fn stage_images(paths: &[PathBuf], work: &Path, downscale: u32) -> Result<Vec<St
         };
         let dst = dir.join(&name);
         if downscale > 1 {
-            let img = image::open(p).map_err(|e| Error::image(p, e))?;
+            let img = read_image(p)?;
             let (w, h) = (img.width(), img.height());
             let (nw, nh) = (
                 ((w as f64 / downscale as f64).round() as u32).max(1),
@@ -268,6 +290,7 @@ fn extract_and_match(
     camera_args: &[String],
     plan: MatchPlan,
     log: &Path,
+    steps: &Steps,
 ) -> Result<()> {
     let db = work.join("database.db");
     let mut args = vec![
@@ -284,7 +307,7 @@ fn extract_and_match(
         opts.threads.to_string(),
     ];
     args.extend_from_slice(camera_args);
-    run_colmap(program, &args, log)?;
+    run_colmap(program, &args, log, steps)?;
     let mut args = match (opts.matcher.as_str(), plan.pairs) {
         ("auto" | "pairs", Some(pairs)) => {
             let list = work.join("pairs.txt");
@@ -322,12 +345,17 @@ fn extract_and_match(
         s("--SiftMatching.num_threads"),
         opts.threads.to_string(),
     ]);
-    run_colmap(program, &args, log)
+    run_colmap(program, &args, log, steps)
 }
 
 /// Full reconstruction of the images in `images_dir`; writes `out/sparse/0` and links
-/// `out/images` to the images.
-pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<SfmReport> {
+/// `out/images` to the images. `progress` hears COLMAP's three programs finish.
+pub fn reconstruct(
+    images_dir: &Path,
+    out: &Path,
+    opts: &SfmOptions,
+    progress: &dyn Progress,
+) -> Result<SfmReport> {
     let start = Instant::now();
     let program = colmap_program()?;
     check_out(out, opts)?;
@@ -352,6 +380,7 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
         .map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let log = work.path().join("colmap.log");
     let staged = stage_images(&paths, work.path(), opts.downscale)?;
+    let steps = Steps::new(progress);
     extract_and_match(
         &program,
         work.path(),
@@ -367,6 +396,7 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
             staged: &staged,
         },
         &log,
+        &steps,
     )?;
     let sparse = work.path().join("sparse");
     std::fs::create_dir_all(&sparse).map_err(|e| Error::io(&sparse, e))?;
@@ -384,6 +414,7 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
             opts.threads.to_string(),
         ],
         &log,
+        &steps,
     )?;
     // COLMAP may split the images into several models: keep the one with the most images.
     let mut best: Option<Scene> = None;
@@ -428,7 +459,13 @@ pub fn reconstruct(images_dir: &Path, out: &Path, opts: &SfmOptions) -> Result<S
 
 /// Triangulate points for a posed scene, keeping its cameras and poses. Writes `out/sparse/0`
 /// (image names as in the scene, relative to `out/images`, which links to the scene's folder).
-pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmReport> {
+/// `progress` hears COLMAP's three programs finish.
+pub fn triangulate(
+    scene: &Scene,
+    out: &Path,
+    opts: &SfmOptions,
+    progress: &dyn Progress,
+) -> Result<SfmReport> {
     let start = Instant::now();
     let program = colmap_program()?;
     check_out(out, opts)?;
@@ -492,10 +529,7 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
         }
     }
     let pairs = pairs_from_poses(scene, opts.pair_neighbours);
-    eprintln!(
-        "  matching {} image pairs chosen from the poses",
-        pairs.len()
-    );
+    let steps = Steps::new(progress);
     extract_and_match(
         &program,
         work.path(),
@@ -506,6 +540,7 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             staged: &staged,
         },
         &log,
+        &steps,
     )?;
     // COLMAP numbers images and cameras as its extractor threads finish, not in list order:
     // take the ids from its database so the known model lines up with it.
@@ -540,6 +575,7 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             opts.threads.to_string(),
         ],
         &log,
+        &steps,
     )?;
     let mut model = colmap::read_model(&tri, &work.path().join("images"))?;
     // The poses must come back unchanged; a mismatch means the database ids did not line up.
@@ -574,7 +610,7 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
             im.pose = scene.images[k].pose;
         }
     }
-    finish(
+    let mut report = finish(
         model,
         out,
         &root,
@@ -582,7 +618,9 @@ pub fn triangulate(scene: &Scene, out: &Path, opts: &SfmOptions) -> Result<SfmRe
         scene.images.len(),
         start,
         work,
-    )
+    )?;
+    report.matched_pairs = Some(pairs.len());
+    Ok(report)
 }
 
 /// The folder all the scene's images sit under (their longest common ancestor).
@@ -684,5 +722,6 @@ fn finish(
         },
         seconds: start.elapsed().as_secs_f64(),
         model_dir: out.join("sparse/0"),
+        matched_pairs: None,
     })
 }

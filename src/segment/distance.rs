@@ -2,6 +2,7 @@
 //! parabolas), used to keep prompts and votes away from mask edges and to find a mask's most
 //! interior point.
 
+use crate::util::mask::is_object;
 use image::GrayImage;
 
 /// For every pixel, the distance (pixels) to the nearest pixel where `is_target` is false.
@@ -88,10 +89,10 @@ fn edt_1d(f: &[f32]) -> Vec<f32> {
 
 /// Signed distance to the mask's edge: positive inside (distance to the nearest outside pixel,
 /// the image border counting as outside), negative outside (minus the distance to the nearest
-/// inside pixel). Pixels > 127 are inside.
+/// inside pixel). Object pixels ([`is_object`]) are inside.
 pub fn signed_distance(mask: &GrayImage) -> Vec<f32> {
-    let inside = edt(mask, |v| v > 127, false);
-    let outside = edt(mask, |v| v <= 127, true);
+    let inside = edt(mask, is_object, false);
+    let outside = edt(mask, |v| !is_object(v), true);
     inside
         .iter()
         .zip(&outside)
@@ -101,7 +102,7 @@ pub fn signed_distance(mask: &GrayImage) -> Vec<f32> {
 
 /// The interior point farthest from the mask's edge (pixel centre), or `None` for an empty mask.
 pub fn most_interior_point(mask: &GrayImage) -> Option<(f64, f64)> {
-    let d = edt(mask, |v| v > 127, false);
+    let d = edt(mask, is_object, false);
     let (i, best) = d.iter().enumerate().fold(
         (0, 0f32),
         |acc, (i, v)| if *v > acc.1 { (i, *v) } else { acc },
@@ -133,7 +134,7 @@ mod tests {
         let sd = signed_distance(&m);
         for y in 0..17i32 {
             for x in 0..23i32 {
-                let inside = m.get_pixel(x as u32, y as u32)[0] > 127;
+                let inside = is_object(m.get_pixel(x as u32, y as u32)[0]);
                 let mut best = f32::INFINITY;
                 for yy in -1..18i32 {
                     for xx in -1..24i32 {
@@ -141,7 +142,7 @@ mod tests {
                         let other = if border {
                             !inside
                         } else {
-                            (m.get_pixel(xx as u32, yy as u32)[0] > 127) != inside
+                            is_object(m.get_pixel(xx as u32, yy as u32)[0]) != inside
                         };
                         // Outside the image is "outside the mask": it only bounds inside pixels.
                         if other && (!border || inside) {

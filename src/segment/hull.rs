@@ -3,6 +3,7 @@
 //! alpha), rasterise, blur and threshold. Comparing it with SAM's mask finds obstructed views
 //! (paper §4.2, "Obstruction handling"). A convex hull is not enough: one outlier ruins it.
 
+use crate::util::stats::quantile;
 use glam::DVec2;
 use image::{GrayImage, Luma};
 use spade::{DelaunayTriangulation, Point2, Triangulation};
@@ -132,19 +133,6 @@ fn triangulate_without_outliers(
     Some((build(&kept)?, spacing))
 }
 
-pub(crate) fn median(v: Vec<f64>) -> Option<f64> {
-    quantile(v, 0.5)
-}
-
-/// The q-quantile (nearest rank) of the values, `None` when empty.
-pub(crate) fn quantile(mut v: Vec<f64>, q: f64) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    Some(v[((v.len() - 1) as f64 * q).round() as usize])
-}
-
 /// Set to 1 every pixel whose centre lies inside the triangle.
 fn fill_triangle(cover: &mut [f32], width: u32, height: u32, t: [DVec2; 3]) {
     let lo = t[0].min(t[1]).min(t[2]);
@@ -206,24 +194,10 @@ pub fn gaussian_blur(src: &[f32], w: usize, h: usize, sigma: f32) -> Vec<f32> {
     out
 }
 
-/// Intersection over union of two masks (pixels > 127 are in); 0 when both are empty.
-pub fn iou(a: &GrayImage, b: &GrayImage) -> f64 {
-    let (mut inter, mut union) = (0u64, 0u64);
-    for (pa, pb) in a.pixels().zip(b.pixels()) {
-        let (x, y) = (pa[0] > 127, pb[0] > 127);
-        inter += (x && y) as u64;
-        union += (x || y) as u64;
-    }
-    if union == 0 {
-        0.0
-    } else {
-        inter as f64 / union as f64
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::util::mask::iou;
 
     /// Points on a grid inside an L shape, plus one far outlier.
     fn l_shape() -> (Vec<DVec2>, GrayImage) {

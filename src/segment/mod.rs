@@ -1,41 +1,29 @@
-//! Segment Anything (MobileSAM) through ONNX Runtime, and multi-view segmentation.
+//! Multi-view segmentation (Obj-NeRF's Algorithm 1): a click in one view becomes a mask in every
+//! view, carried by the scene's 2D-3D feature tracks.
 //!
-//! - [`models`]: the models directory (`$OBJNERF_HOME`) and `objnerf models install/list`.
-//! - [`sam`]: the [`Segmenter`] (encoder once per image, decoder per prompt set).
-//! - [`prompt`], [`preprocess`], [`mask`]: SAM's inputs and outputs, exactly as SAM defines them.
-//! - [`cache`]: embeddings keyed by image content and model, in memory and on disk.
-//! - [`convert`]: the ONNX encoder and decoder written from the PyTorch checkpoint.
-//! - [`view`]: `objnerf segment-view`; [`bench`]: `objnerf bench sam` (ours against Python
-//!   onnxruntime in the same run); [`bench_convert`]: `objnerf bench sam-convert` (our ONNX
-//!   files against the PyTorch export).
-//! - [`scene_views`] (SAM for [`propagate`]), [`zoom`] (small objects).
-//! - [`distance`], [`hull`], [`propagate`] with [`view_prompts`] and [`regions`], [`output`]: multi-view segmentation; [`evaluate`]:
-//!   scoring it against truth masks, and the one-click-per-view oracle.
+//! - [`types`]: prompts, a segmenter's answer, per-view results, options (shared by the rest).
+//! - [`propagate`]: Algorithm 1 (votes, covisibility order, obstruction test, several objects,
+//!   overlaps) and the projection baseline; [`view_prompts`]: one view's prompts (farthest-point
+//!   positives, negatives, box, projected fill-in with a free-space test).
+//! - [`hull`] (the alpha-shape expected mask), [`regions`] (mask islands and pin-holes),
+//!   [`distance`] (exact distance transforms).
+//! - [`sam_views`]: SAM ([`crate::sam`]) as the propagation's segmenter.
+//! - [`run`]: `objnerf segment` as a call (checks, propagation, outputs); [`output`]: masks,
+//!   point clouds, contact sheets; [`evaluate`]: scores against truth masks.
 
-pub mod bench;
-pub mod bench_convert;
-pub mod cache;
-pub mod cli;
-pub mod convert;
 pub mod distance;
 pub mod evaluate;
 pub mod hull;
-pub mod mask;
-pub mod models;
 pub mod output;
-pub mod preprocess;
-pub mod prompt;
 pub mod propagate;
 pub mod regions;
 pub mod run;
-pub mod sam;
-pub mod scene_views;
-pub mod view;
+pub mod sam_views;
+pub mod types;
 pub mod view_prompts;
-pub mod zoom;
 
-pub use cache::Embedding;
-pub use mask::Mask;
-pub use models::ModelsDir;
-pub use prompt::{Point, Prompts};
-pub use sam::{Segmenter, SegmenterOptions};
+pub use run::{check_request, segment_scene, SegmentReport};
+pub use sam_views::SamViews;
+pub use types::{
+    ObjectPrompt, ObjectSegmentation, PointPrompt, PropagationOptions, ViewResult, ViewStatus,
+};

@@ -1,30 +1,31 @@
 //! What `objnerf segment` writes: per-object masks, the segmented sparse cloud, a contact sheet
 //! of every view with its mask and status, and report.json.
 
-use crate::error::{Error, Result};
+use super::types::{ObjectSegmentation, ViewStatus};
+use crate::error::Result;
 use crate::scene::formats::ply;
+use crate::scene::io::{mask_file, read_rgb};
 use crate::scene::Scene;
-use crate::segment::propagate::{ObjectSegmentation, ViewStatus};
 use crate::util::atomic::save_image_atomic;
+use crate::util::mask::is_object;
 use image::{imageops, DynamicImage, GrayImage, Rgb, RgbImage};
 use rayon::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// File-name-safe form of an image name (`train/r_0.png` → `train_r_0`).
-pub fn mask_file_stem(image_name: &str) -> String {
-    let stem = Path::new(image_name).with_extension("");
-    stem.to_string_lossy().replace(['/', '\\'], "_")
+/// `dir/masks/<object>/<image name>.png` ([`mask_file`]) for every view with a mask (obstructed
+/// views included: their status in report.json says to leave them out of training), and
+/// `dir/<object>_points.ply`.
+/// The folder of one object's masks in a segmentation output folder.
+pub fn masks_dir(seg_dir: &Path, object: &str) -> PathBuf {
+    seg_dir.join("masks").join(object)
 }
 
-/// `dir/masks/<object>/<image>.png` for every view with a mask (obstructed views included: their
-/// status in report.json says to leave them out of training), and `dir/<object>_points.ply`.
 pub fn write_object(scene: &Scene, obj: &ObjectSegmentation, dir: &Path) -> Result<()> {
-    let mdir = dir.join("masks").join(&obj.name);
-    std::fs::create_dir_all(&mdir).map_err(|e| Error::io(&mdir, e))?;
+    let mdir = masks_dir(dir, &obj.name);
     obj.views.par_iter().try_for_each(|v| -> Result<()> {
         if let Some(m) = &v.mask {
             save_image_atomic(
-                &mdir.join(format!("{}.png", mask_file_stem(&v.view))),
+                &mask_file(&mdir, &v.view),
                 &DynamicImage::ImageLuma8(m.clone()),
             )?;
         }
@@ -50,7 +51,7 @@ pub fn contact_sheet(
         .par_iter()
         .zip(&obj.views)
         .map(|(im, v)| -> Result<RgbImage> {
-            let mut img = crate::scene::io::read_rgb(&im.path)?;
+            let mut img = read_rgb(&im.path)?;
             if let Some(m) = &v.mask {
                 tint(&mut img, m, [255, 60, 200]);
             }
@@ -104,7 +105,7 @@ pub fn write_contact_sheet(scene: &Scene, obj: &ObjectSegmentation, path: &Path)
 
 fn tint(img: &mut RgbImage, mask: &GrayImage, c: [u8; 3]) {
     for (x, y, px) in img.enumerate_pixels_mut() {
-        if x < mask.width() && y < mask.height() && mask.get_pixel(x, y)[0] > 127 {
+        if x < mask.width() && y < mask.height() && is_object(mask.get_pixel(x, y)[0]) {
             for k in 0..3 {
                 px[k] = ((px[k] as u16 + c[k] as u16) / 2) as u8;
             }

@@ -8,6 +8,7 @@
 //! parts, since each is large or prompted. Tiny holes are decoder speckle (fox's close-ups show a
 //! checkerboard of them), not structure; a mug handle's hole is thousands of pixels.
 
+use crate::util::mask::is_object;
 use glam::DVec2;
 use image::GrayImage;
 
@@ -35,7 +36,7 @@ pub fn clean_mask(mask: &mut GrayImage, positives: &[DVec2], opts: &CleanOptions
     let (w, h) = (mask.width() as usize, mask.height() as usize);
     let mut changed = 0;
     // Islands.
-    let on: Vec<bool> = mask.pixels().map(|p| p[0] > 127).collect();
+    let on: Vec<bool> = mask.pixels().map(|p| is_object(p[0])).collect();
     let (labels, sizes) = label(&on, w, h);
     if sizes.len() > 1 {
         let largest = sizes.iter().copied().max().unwrap_or(0);
@@ -61,7 +62,7 @@ pub fn clean_mask(mask: &mut GrayImage, positives: &[DVec2], opts: &CleanOptions
         }
     }
     // Holes: background islands that do not touch the border.
-    let off: Vec<bool> = mask.pixels().map(|p| p[0] <= 127).collect();
+    let off: Vec<bool> = mask.pixels().map(|p| !is_object(p[0])).collect();
     let (labels, sizes) = label(&off, w, h);
     let mut border = vec![false; sizes.len()];
     for x in 0..w {

@@ -12,7 +12,7 @@
 //! the projection the paper argues against, made safe by the evidence it lacks: what the view
 //! itself saw at that pixel.
 
-use super::propagate::{PointPrompt, PropagationOptions, Votes};
+use super::types::{PointPrompt, PropagationOptions, Votes};
 use crate::scene::Scene;
 use glam::DVec2;
 use std::collections::HashMap;

@@ -47,6 +47,17 @@ pub fn save_image_atomic(path: &Path, img: &image::DynamicImage) -> Result<()> {
     write_bytes_atomic(path, buf.get_ref())
 }
 
+/// Temporary files are created 0600; installed models are meant to be shared (0644).
+pub fn make_readable(path: &Path) -> Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| Error::io(path, e))?;
+    }
+    Ok(())
+}
+
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),

@@ -1,11 +1,15 @@
-//! Small shared helpers: atomic file output, a seeded random generator, image reading.
+//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks, memory,
+//! paths, progress reporting, a seeded random generator, order statistics.
 
 pub mod atomic;
-pub mod bench;
+pub mod digest;
+pub mod mask;
 pub mod mem;
 pub mod paths;
 pub mod progress;
 pub mod rng;
+pub mod stats;
 
 pub use atomic::{write_atomic, AtomicDir};
+pub use progress::{Detail, Progress, Silent};
 pub use rng::Rng;

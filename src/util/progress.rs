@@ -1,49 +1,31 @@
-//! Progress bars for long stages (to stderr; hidden when stderr is not a terminal).
+//! Progress of long work: the library reports it through [`Progress`], and whoever listens draws
+//! it (the command line's bars, `crate::cli::progress`). Library code never draws or prints.
 
-use indicatif::{ProgressBar, ProgressStyle};
-
-/// A bar of `len` steps named `stage`.
-pub fn bar(len: u64, stage: &str) -> ProgressBar {
-    let b = ProgressBar::new(len);
-    b.set_style(
-        ProgressStyle::with_template("{prefix:>9} {elapsed_precise} [{bar:30}] {pos}/{len} {msg}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    b.set_prefix(stage.to_string());
-    b
+/// What the step just finished was about, for the listener to show.
+#[derive(Clone, Copy, Debug)]
+pub enum Detail<'a> {
+    None,
+    /// The item just done (a view's name, a frame's file).
+    Item(&'a str),
+    /// A training step: its loss, the batch PSNR, and rays per second since the stage began.
+    Training {
+        loss: f32,
+        psnr: f32,
+        rays_per_second: f64,
+    },
 }
 
-/// The message a training bar shows: loss, PSNR and rays per second since the first step seen.
-pub struct TrainProgress {
-    bar: ProgressBar,
-    first_step: Option<usize>,
-    batch: f64,
+/// A listener for stages of work. Every method has a default that does nothing.
+pub trait Progress: Sync {
+    /// A stage of `total` steps begins (e.g. "segment", "train mug").
+    fn begin(&self, _stage: &str, _total: u64) {}
+    /// `done` steps of the current stage are finished.
+    fn advance(&self, _done: u64, _detail: Detail) {}
+    /// The current stage is over.
+    fn end(&self) {}
 }
 
-impl TrainProgress {
-    pub fn new(steps: usize, stage: &str) -> Self {
-        TrainProgress {
-            bar: bar(steps as u64, stage),
-            first_step: None,
-            batch: crate::field::TrainConfig::default().batch as f64,
-        }
-    }
+/// Reports nothing.
+pub struct Silent;
 
-    pub fn update(&mut self, s: &crate::field::train::StepStats, secs: f64) {
-        let f = *self.first_step.get_or_insert(s.step.saturating_sub(1));
-        self.bar.set_position(s.step as u64);
-        if s.step % 10 == 0 {
-            self.bar.set_message(format!(
-                "loss {:.5}  psnr {:.2} dB  {:.0} rays/s",
-                s.loss,
-                s.psnr,
-                (s.step - f) as f64 * self.batch / secs.max(1e-9)
-            ));
-        }
-    }
-
-    pub fn finish(&self) {
-        self.bar.finish_and_clear();
-    }
-}
+impl Progress for Silent {}

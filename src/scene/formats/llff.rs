@@ -6,6 +6,7 @@
 
 use super::{image_size, intern_camera};
 use crate::error::{Error, Result};
+use crate::scene::io::is_image;
 use crate::scene::{Camera, ImageView, Pose, Scene, SourceFormat};
 use std::path::{Path, PathBuf};
 
@@ -78,21 +79,13 @@ pub fn read(dir: &Path) -> Result<Scene> {
     Ok(scene)
 }
 
-fn is_image(p: &Path) -> bool {
-    p.is_file()
-        && p.extension().is_some_and(|e| {
-            let e = e.to_string_lossy().to_ascii_lowercase();
-            matches!(e.as_str(), "jpg" | "jpeg" | "png")
-        })
-}
-
 /// The sorted images of `images/`, or of the first `images_*` folder holding exactly `n`.
 fn find_images(dir: &Path, n: usize) -> Result<Vec<PathBuf>> {
     let list = |d: &Path| -> Vec<PathBuf> {
         let mut v: Vec<PathBuf> = std::fs::read_dir(d)
             .map(|rd| {
                 rd.filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| is_image(p))
+                    .filter(|p| p.is_file() && is_image(p))
                     .collect()
             })
             .unwrap_or_default();

@@ -1,0 +1,160 @@
+//! What every benchmark records: timing statistics, the machine, the commit, CPU time, and the
+//! Python venv a reference implementation runs in. Shared by the examples through
+//! `#[path = "support/bench.rs"] mod bench;` (each uses a part, hence the allow).
+#![allow(dead_code)]
+
+use objnerf::{Error, Result};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// Summary of a list of timings, in seconds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Stats {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+    pub p25: f64,
+    pub p75: f64,
+    pub mean: f64,
+    pub runs: Vec<f64>,
+}
+
+impl Stats {
+    pub fn of(v: &[f64]) -> Stats {
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            if s.is_empty() {
+                return f64::NAN;
+            }
+            let x = p * (s.len() - 1) as f64;
+            let (i, f) = (x.floor() as usize, x.fract());
+            s[i] + (s[(i + 1).min(s.len() - 1)] - s[i]) * f
+        };
+        Stats {
+            median: q(0.5),
+            min: s.first().copied().unwrap_or(f64::NAN),
+            max: s.last().copied().unwrap_or(f64::NAN),
+            p25: q(0.25),
+            p75: q(0.75),
+            mean: s.iter().sum::<f64>() / s.len().max(1) as f64,
+            runs: v.to_vec(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Machine {
+    pub cpu: String,
+    pub cores: usize,
+    pub os: String,
+    /// The 1-minute load average when the record was made: other work sharing the cores makes
+    /// wall-clock figures pessimistic.
+    pub load_average: Option<f64>,
+}
+
+pub fn machine() -> Machine {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into());
+    Machine {
+        cpu,
+        cores: std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1),
+        os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
+        load_average: std::fs::read_to_string("/proc/loadavg")
+            .ok()
+            .and_then(|s| s.split_whitespace().next()?.parse().ok()),
+    }
+}
+
+/// The checked-out commit, for benchmark records.
+pub fn git_commit() -> Option<String> {
+    let out = Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()?;
+    out.status
+        .success()
+        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+/// utime + stime of this process (Linux /proc), seconds; 0 elsewhere.
+pub fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    let f: Vec<&str> = stat
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
+}
+
+/// A Python venv's interpreter for a benchmark's reference side: created (and `packages`
+/// pip-installed) when missing or when `check` (Python code) fails in it.
+pub fn ensure_venv(venv: &Path, check: &str, packages: &[&str]) -> Result<PathBuf> {
+    let py = venv.join("bin").join("python");
+    let ok = |py: &Path| {
+        Command::new(py)
+            .args(["-c", check])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if py.is_file() && ok(&py) {
+        return Ok(py);
+    }
+    eprintln!(
+        "setting up the benchmark's Python venv in {} ...",
+        venv.display()
+    );
+    let status = Command::new(objnerf::models::python())
+        .args(["-m", "venv"])
+        .arg(venv)
+        .status()
+        .map_err(|e| Error::external("python3 -m venv", e.to_string()))?;
+    if !status.success() {
+        return Err(Error::external(
+            "python3 -m venv",
+            format!("failed: {status}"),
+        ));
+    }
+    let out = Command::new(&py)
+        .args(["-m", "pip", "install", "--quiet"])
+        .args(packages)
+        .output()
+        .map_err(|e| Error::external("pip install", e.to_string()))?;
+    if !out.status.success() || !ok(&py) {
+        return Err(Error::external(
+            format!("pip install {}", packages.join(" ")),
+            String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        ));
+    }
+    Ok(py)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats() {
+        let s = Stats::of(&[3.0, 1.0, 2.0, 4.0, 5.0]);
+        assert_eq!(
+            (s.median, s.min, s.max, s.p25, s.p75),
+            (3.0, 1.0, 5.0, 2.0, 4.0)
+        );
+        assert_eq!(s.mean, 3.0);
+    }
+}

@@ -1,0 +1,159 @@
+//! `objnerf train`, `objnerf render` and `objnerf eval`: one field at a time.
+
+use super::progress::Bars;
+use clap::Args;
+use objnerf::field::io::{self, IDENTITY};
+use objnerf::field::{
+    eval::evaluate_model, fit_scene, model_notes, DepthMode, FitOptions, MaskSource, SetupConfig,
+};
+use objnerf::render::render_scene_views;
+use objnerf::util::Progress;
+use objnerf::{Result, Scene};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct TrainCmd {
+    /// A COLMAP model folder, transforms.json or other scene.
+    scene: PathBuf,
+    /// The object's masks: 'alpha' (the images' alpha), a folder of masks, 'scene' (each
+    /// view's mask_path) or 'truth:OBJECT' (the demo scene's true masks).
+    #[arg(long)]
+    masks: String,
+    /// Where to write the model (.objf).
+    #[arg(long)]
+    out: PathBuf,
+    /// Train on images downscaled by this factor (box filter).
+    #[arg(long, default_value_t = FitOptions::default().downscale)]
+    downscale: u32,
+    /// Stop after this many seconds of training.
+    #[arg(long)]
+    time_budget: Option<f64>,
+    /// Depth supervision: sparse (the object's 3D points), dense (depth images) or none.
+    #[arg(long, default_value_t = FitOptions::default().depth)]
+    depth: DepthMode,
+    #[arg(long, default_value_t = FitOptions::default().seed)]
+    seed: u64,
+    /// Most optimisation steps (the learning-rate schedule spans them).
+    #[arg(long, default_value_t = FitOptions::default().steps)]
+    steps: usize,
+    /// Spherical-harmonic degree of the colour (0-2).
+    #[arg(long, default_value_t = SetupConfig::default().sh_degree)]
+    sh_degree: u32,
+    /// Memory for the grid and optimiser state, MiB.
+    #[arg(long, default_value_t = SetupConfig::default().memory_budget >> 20)]
+    memory_mb: usize,
+    /// Continue training this model.
+    #[arg(long)]
+    resume: Option<PathBuf>,
+}
+
+impl TrainCmd {
+    pub fn run(self) -> Result<()> {
+        let scene = Scene::load(&self.scene)?;
+        let masks = MaskSource::parse(&self.masks, &self.scene)?;
+        let opts = FitOptions {
+            downscale: self.downscale,
+            time_budget: self.time_budget,
+            depth: self.depth,
+            seed: self.seed,
+            steps: self.steps,
+            setup: SetupConfig {
+                sh_degree: self.sh_degree.min(2),
+                memory_budget: self.memory_mb << 20,
+                ..Default::default()
+            },
+            exclude_views: vec![],
+        };
+        let resume = self.resume.as_deref().map(io::load).transpose()?;
+        let bars = Bars::default();
+        bars.begin("train", opts.steps as u64);
+        let fitted = fit_scene(&scene, &masks, &opts, resume, &mut |s| {
+            bars.advance(s.step as u64, s.detail())
+        })?;
+        bars.end();
+        let notes = model_notes(&scene, &opts, &fitted.report);
+        io::save(&self.out, &fitted.trainer.parts(IDENTITY, notes))?;
+        let r = &fitted.report;
+        if let Some(s) = &r.setup {
+            eprintln!(
+                "box {:?}..{:?} (the masks' visual hull); grid {:?} ({} vertices) because {}",
+                s.box_min, s.box_max, s.final_dims, s.final_vertices, s.why
+            );
+            eprintln!(
+                "rays: {} of {} kept ({:.1}% pruned: they miss the object's box)",
+                s.rays_kept,
+                s.rays_total,
+                100.0 * s.pruned_fraction
+            );
+        }
+        eprintln!(
+            "trained {} steps in {:.1} s ({:.0} rays/s, stopped by {}); batch PSNR {:.2} dB; {} occupied cells; {:.0} MiB; model {}",
+            r.run.steps,
+            r.run.seconds,
+            r.run.rays_per_second,
+            r.run.stopped_by,
+            r.run.final_psnr,
+            r.occupied_cells,
+            r.memory_bytes as f64 / 1048576.0,
+            self.out.display()
+        );
+        Ok(())
+    }
+}
+
+#[derive(Args)]
+pub struct RenderCmd {
+    model: PathBuf,
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+    /// Downscale of the scene's cameras (default: the one the model was trained at).
+    #[arg(long)]
+    downscale: Option<u32>,
+}
+
+impl RenderCmd {
+    pub fn run(self) -> Result<()> {
+        let model = io::load_field(&self.model)?;
+        let scene = Scene::load(&self.scene)?;
+        let n = render_scene_views(&model, &scene, self.downscale, &self.out, &Bars::default())?;
+        eprintln!("wrote {n} images to {}", self.out.display());
+        Ok(())
+    }
+}
+
+#[derive(Args)]
+pub struct EvalCmd {
+    model: PathBuf,
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long, default_value = "alpha")]
+    masks: String,
+    #[arg(long)]
+    downscale: Option<u32>,
+    #[arg(long)]
+    json: bool,
+}
+
+impl EvalCmd {
+    pub fn run(self) -> Result<()> {
+        let model = io::load_field(&self.model)?;
+        let scene = Scene::load(&self.scene)?;
+        let masks = MaskSource::parse(&self.masks, &self.scene)?;
+        let r = evaluate_model(&model, &scene, &masks, self.downscale)?;
+        if self.json {
+            let v = serde_json::json!({
+                "psnr": r.psnr, "ssim": r.ssim, "num_views": r.num_views, "views": r.views,
+                "seconds": r.seconds,
+            });
+            println!("{v}");
+        } else {
+            println!(
+                "PSNR {:.2} dB, SSIM {:.4} over {} views",
+                r.psnr, r.ssim, r.num_views
+            );
+        }
+        Ok(())
+    }
+}

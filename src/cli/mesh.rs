@@ -1,0 +1,85 @@
+//! `objnerf mesh`: marching cubes on a trained model.
+
+use clap::Args;
+use glam::DVec3;
+use objnerf::mesh::from_field::{mesh_model, FieldMeshOptions};
+use objnerf::{Error, Result};
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct MeshCmd {
+    /// A model file written by `objnerf train` (or `extract`).
+    pub model: PathBuf,
+    /// Output: .glb (glTF binary, +Y up), .obj (+Y up) or .ply (the capture's own frame).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Samples along the box's longest side (default: the field's own grid).
+    #[arg(long)]
+    pub resolution: Option<usize>,
+    /// Surface opacity: where one voxel of material would be this opaque (0..1).
+    #[arg(long, default_value_t = FieldMeshOptions::default().iso_alpha)]
+    pub iso: f32,
+    /// Drop pieces with fewer triangles than this fraction of the largest (0 keeps all).
+    #[arg(long, default_value_t = FieldMeshOptions::default().min_component)]
+    pub min_component: f64,
+    /// Keep empty space enclosed by the surface (default: filled, the outer surface of a solid).
+    #[arg(long)]
+    pub keep_cavities: bool,
+    /// The capture's up axis (+x, -x, +y, -y, +z, -z) or 'auto' (from the training scene's cameras).
+    #[arg(long, default_value = "auto")]
+    pub up: String,
+    /// Name of the mesh's node (default: the model file's stem).
+    #[arg(long)]
+    pub name: Option<String>,
+}
+
+/// Parse `--up`.
+fn parse_up(s: &str) -> Result<Option<DVec3>> {
+    Ok(Some(match s.to_ascii_lowercase().as_str() {
+        "auto" => return Ok(None),
+        "+x" | "x" => DVec3::X,
+        "-x" => DVec3::NEG_X,
+        "+y" | "y" => DVec3::Y,
+        "-y" => DVec3::NEG_Y,
+        "+z" | "z" => DVec3::Z,
+        "-z" => DVec3::NEG_Z,
+        _ => {
+            return Err(Error::invalid(format!(
+                "--up {s}: expected auto, +x, -x, +y, -y, +z or -z"
+            )))
+        }
+    }))
+}
+
+impl MeshCmd {
+    pub fn run(self) -> Result<()> {
+        let up = parse_up(&self.up)?;
+        let name = self.name.clone().unwrap_or_else(|| {
+            self.model
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_else(|| "object".into())
+        });
+        let opts = FieldMeshOptions {
+            resolution: self.resolution,
+            iso_alpha: self.iso,
+            min_component: self.min_component,
+            fill_cavities: !self.keep_cavities,
+        };
+        let (_, out) = mesh_model(&self.model, &self.out, &name, &opts, up)?;
+        let r = &out.mesh;
+        println!(
+            "{}: {} vertices, {} triangles (grid {}x{}x{}, iso alpha {}, {} small pieces removed)",
+            out.path.display(),
+            r.vertices,
+            r.triangles,
+            r.sample_dims[0],
+            r.sample_dims[1],
+            r.sample_dims[2],
+            r.iso_alpha,
+            r.pieces_removed
+        );
+        println!("frame: {}", out.frame.why);
+        Ok(())
+    }
+}

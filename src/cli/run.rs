@@ -1,0 +1,209 @@
+//! `objnerf extract` (click to mesh) and `objnerf demo` (the same on the built-in scene, scored
+//! against its truth).
+
+use super::print_json;
+use super::progress::Bars;
+use super::segment::{prompts_in_order, ClickArgs};
+use clap::{ArgMatches, Args};
+use objnerf::field::DepthMode;
+use objnerf::mesh::from_field::FieldMeshOptions;
+use objnerf::models::ModelsDir;
+use objnerf::pipeline::demo::{prepare_demo, run_demo};
+use objnerf::pipeline::{extract, ExtractOptions, ExtractReport};
+use objnerf::render::TurntableOptions;
+use objnerf::segment::check_request;
+use objnerf::{Result, Scene};
+use std::path::PathBuf;
+
+fn default_budget() -> f64 {
+    ExtractOptions::default()
+        .fit
+        .time_budget
+        .unwrap_or(f64::INFINITY)
+}
+
+#[derive(Args, Debug)]
+pub struct ExtractCmd {
+    #[command(flatten)]
+    pub clicks: ClickArgs,
+    /// Run folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Train on images downscaled by this factor.
+    #[arg(long, default_value_t = ExtractOptions::default().fit.downscale)]
+    pub downscale: u32,
+    /// Seconds of training per object.
+    #[arg(long, default_value_t = default_budget())]
+    pub time_budget: f64,
+    /// Most training steps per object.
+    #[arg(long, default_value_t = ExtractOptions::default().fit.steps)]
+    pub steps: usize,
+    /// Depth supervision: sparse (the object's 3D points), dense (depth images) or none.
+    #[arg(long, default_value_t = ExtractOptions::default().fit.depth)]
+    pub depth: DepthMode,
+    #[arg(long, default_value_t = ExtractOptions::default().fit.seed)]
+    pub seed: u64,
+    /// Marching-cubes samples along the box's longest side (default: the field's grid).
+    #[arg(long)]
+    pub resolution: Option<usize>,
+    /// Surface opacity per voxel for marching cubes (0..1).
+    #[arg(long, default_value_t = FieldMeshOptions::default().iso_alpha)]
+    pub iso: f32,
+    /// Turntable frames per object.
+    #[arg(long, default_value_t = TurntableOptions::default().frames)]
+    pub frames: usize,
+    /// Replace the run folder if it exists.
+    #[arg(long)]
+    pub overwrite: bool,
+    /// Print report.json to stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl ExtractCmd {
+    fn options(&self) -> ExtractOptions {
+        let mut o = ExtractOptions {
+            overwrite: self.overwrite,
+            ..Default::default()
+        };
+        o.fit.downscale = self.downscale;
+        o.fit.time_budget = Some(self.time_budget);
+        o.fit.steps = self.steps;
+        o.fit.depth = self.depth;
+        o.fit.seed = self.seed;
+        o.mesh.resolution = self.resolution;
+        o.mesh.iso_alpha = self.iso;
+        o.turntable.frames = self.frames.max(1);
+        o
+    }
+
+    pub fn run(self, m: &ArgMatches) -> Result<()> {
+        let scene = Scene::load(&self.clicks.scene)?;
+        let prompts = prompts_in_order(m, &scene)?;
+        check_request(&scene, &prompts)?;
+        let seg = ModelsDir::from_env()?.segmenter(0)?;
+        let report = extract(
+            &scene,
+            &prompts,
+            &self.options(),
+            &seg,
+            &self.out,
+            &Bars::default(),
+        )?;
+        if self.json {
+            print_json(&report);
+        }
+        print_summary(&report);
+        Ok(())
+    }
+}
+
+/// What a person wants to read after a run: where things are and how each stage went.
+fn print_summary(r: &ExtractReport) {
+    for o in &r.objects {
+        let s = &o.segmentation;
+        println!(
+            "{}: segmented {} ok / {} obstructed / {} absent of {} views ({} points)",
+            o.name, s.num_ok, s.num_obstructed, s.num_absent, s.num_views, s.num_points
+        );
+        println!(
+            "  field: {}x{}x{} grid, {} steps in {:.0} s, training PSNR {:.2} dB -> {}",
+            o.train.dims[0],
+            o.train.dims[1],
+            o.train.dims[2],
+            o.train.run.steps,
+            o.train_seconds,
+            o.train.run.final_psnr,
+            o.model.display()
+        );
+        println!(
+            "  mesh: {} vertices, {} triangles -> {}",
+            o.mesh.vertices,
+            o.mesh.triangles,
+            o.mesh_glb.display()
+        );
+        println!("  turntable: {}", o.turntable_gif.display());
+    }
+    println!(
+        "all objects: {}; report: {}",
+        r.out.join("mesh.glb").display(),
+        r.out.join("report.json").display()
+    );
+    println!(
+        "{:.0} s (segment {:.0}, train {:.0}, mesh {:.1}, render {:.0}); peak memory {} MiB",
+        r.seconds.total,
+        r.seconds.segment,
+        r.seconds.train,
+        r.seconds.mesh,
+        r.seconds.render,
+        r.peak_rss_mib
+    );
+}
+
+/// The demo's own defaults: a shorter budget than `extract`'s, every 6th view held out.
+fn demo_options() -> ExtractOptions {
+    let mut o = ExtractOptions {
+        overwrite: true,
+        hold_out_every: 6,
+        ..Default::default()
+    };
+    o.fit.time_budget = Some(90.0);
+    o.fit.steps = 6000;
+    o
+}
+
+#[derive(Args, Debug)]
+pub struct DemoCmd {
+    /// Run folder (its contents are replaced): scene/ and run/ go in it.
+    #[arg(long, default_value = "runs/demo")]
+    pub out: PathBuf,
+    /// Which object to extract: mug, sphere, box or torus.
+    #[arg(long, default_value = "mug")]
+    pub object: String,
+    /// Seconds of training.
+    #[arg(long, default_value_t = demo_options().fit.time_budget.unwrap_or(f64::INFINITY))]
+    pub time_budget: f64,
+    /// Most training steps.
+    #[arg(long, default_value_t = demo_options().fit.steps)]
+    pub steps: usize,
+}
+
+impl DemoCmd {
+    pub fn run(self) -> Result<()> {
+        let mut opts = demo_options();
+        opts.fit.time_budget = Some(self.time_budget);
+        opts.fit.steps = self.steps;
+        let setup = prepare_demo(&self.out, &self.object)?;
+        let s = &setup.written;
+        println!(
+            "demo scene: {} views, {} points -> {}",
+            s.views,
+            s.points,
+            s.out.display()
+        );
+        let click = setup.truth.click;
+        println!(
+            "extracting '{}' from one click at ({:.1}, {:.1}) in {}",
+            self.object, click[0], click[1], setup.truth.view
+        );
+        let seg = ModelsDir::from_env()?.segmenter(0)?;
+        let job = run_demo(&setup, &self.out, &opts, &seg, &Bars::default())?;
+        print_summary(&job.report);
+        let t = &job.truth;
+        println!(
+            "against the truth: mask mIoU {:.3} (ok views); held-out PSNR {:.2} dB, SSIM {:.3} ({} views); \
+             Chamfer {:.4} = {:.2}% of the true box diagonal",
+            t.miou_ok_views,
+            t.heldout_psnr,
+            t.heldout_ssim,
+            t.heldout_views,
+            t.chamfer,
+            100.0 * t.chamfer_fraction_of_diagonal
+        );
+        println!(
+            "open {} in Blender (File > Import > glTF 2.0) or any glTF viewer",
+            job.report.out.join("mesh.glb").display()
+        );
+        Ok(())
+    }
+}

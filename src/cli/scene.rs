@@ -1,0 +1,154 @@
+//! `objnerf info`, `objnerf sfm` and `objnerf demo-scene`: scenes in.
+
+use super::print_json;
+use super::progress::Bars;
+use clap::Args;
+use objnerf::demo::{parse_size, write_demo_scene, DemoOptions};
+use objnerf::scene::info::scene_info;
+use objnerf::scene::sfm::{self, SfmInput, SfmOptions};
+use objnerf::{Error, Result, Scene};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct InfoCmd {
+    /// A COLMAP model folder, transforms.json, LLFF or RGB-D folder.
+    scene: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+impl InfoCmd {
+    pub fn run(self) -> Result<()> {
+        let info = scene_info(&Scene::load(&self.scene)?);
+        if self.json {
+            print_json(&info);
+        } else {
+            print!("{}", info.to_text());
+        }
+        Ok(())
+    }
+}
+
+#[derive(Args)]
+pub struct SfmCmd {
+    /// A folder of images (full reconstruction) or a posed scene (triangulation).
+    input: PathBuf,
+    /// Output folder: gets sparse/0/ (COLMAP binary) and images/ (a link to the images).
+    #[arg(long)]
+    out: PathBuf,
+    /// Downscale images by this factor before feature extraction (the model is scaled back).
+    #[arg(long, default_value_t = SfmOptions::default().downscale)]
+    downscale: u32,
+    /// Reconstruct from the images even when the input has poses.
+    #[arg(long)]
+    reconstruct: bool,
+    /// auto (posed scenes: pairs chosen from the poses; else exhaustive), exhaustive, sequential, pairs.
+    #[arg(long, default_value_t = SfmOptions::default().matcher)]
+    matcher: String,
+    /// COLMAP camera model for full reconstruction.
+    #[arg(long, default_value_t = SfmOptions::default().camera_model)]
+    camera_model: String,
+    /// Most SIFT features per image.
+    #[arg(long, default_value_t = SfmOptions::default().max_features)]
+    max_features: u32,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+impl SfmCmd {
+    pub fn run(self) -> Result<()> {
+        if self.downscale == 0 {
+            return Err(Error::invalid("--downscale must be at least 1"));
+        }
+        let opts = SfmOptions {
+            downscale: self.downscale,
+            camera_model: self.camera_model,
+            max_features: self.max_features,
+            matcher: self.matcher,
+            overwrite: self.overwrite,
+            ..Default::default()
+        };
+        let bars = Bars::default();
+        let report = match sfm::resolve_input(&self.input, self.reconstruct)? {
+            SfmInput::Images(dir) => sfm::reconstruct(&dir, &self.out, &opts, &bars)?,
+            SfmInput::Posed(scene) => sfm::triangulate(&scene, &self.out, &opts, &bars)?,
+        };
+        if self.json {
+            print_json(&report);
+        } else {
+            if let Some(n) = report.matched_pairs {
+                println!("matched {n} image pairs chosen from the poses");
+            }
+            println!(
+                "{}: {} of {} images registered, {} points (mean track length {:.2}) in {:.1} s -> {}",
+                report.mode,
+                report.num_registered,
+                report.num_images,
+                report.num_points,
+                report.mean_track_length,
+                report.seconds,
+                report.model_dir.display()
+            );
+        }
+        Ok(())
+    }
+}
+
+fn default_size() -> String {
+    let d = DemoOptions::default();
+    format!("{}x{}", d.width, d.height)
+}
+
+#[derive(Args)]
+pub struct DemoSceneCmd {
+    /// Output folder (created; must be empty unless --overwrite).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = DemoOptions::default().seed)]
+    seed: u64,
+    /// Number of views on the camera ring.
+    #[arg(long, default_value_t = DemoOptions::default().views)]
+    views: usize,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value_t = default_size())]
+    size: String,
+    /// Gaussian noise on the 2D features, in pixels.
+    #[arg(long, default_value_t = DemoOptions::default().noise_px)]
+    noise: f64,
+    /// Fraction of 3D points given one wrong observation.
+    #[arg(long, default_value_t = DemoOptions::default().outlier_fraction)]
+    outliers: f64,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+impl DemoSceneCmd {
+    pub fn run(self) -> Result<()> {
+        let (width, height) = parse_size(&self.size)?;
+        let opts = DemoOptions {
+            seed: self.seed,
+            views: self.views,
+            width,
+            height,
+            noise_px: self.noise,
+            outlier_fraction: self.outliers,
+            overwrite: self.overwrite,
+        };
+        let s = write_demo_scene(&opts, &self.out)?;
+        println!(
+            "wrote {}: {} views, {} points, {} observations in {:.1} s",
+            s.out.display(),
+            s.views,
+            s.points,
+            s.observations,
+            s.seconds
+        );
+        Ok(())
+    }
+}

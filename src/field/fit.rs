@@ -1,0 +1,170 @@
+//! Training an object's field on a scene, as one call: views and masks in, a trained
+//! [`Trainer`] and a report out. `objnerf train` and `objnerf extract` both use it; saving the
+//! model ([`super::io::save`]) is the caller's choice.
+
+use super::depth::{add_dense_depth, add_sparse_depth};
+use super::io::Model;
+use super::rays::RaySet;
+use super::session::{prepare, run, RunSummary, SetupConfig, SetupReport, StopRule};
+use super::train::{StepStats, TrainConfig, Trainer};
+use super::view::{load_views, MaskSource};
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+use serde::Serialize;
+
+/// Depth supervision.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DepthMode {
+    None,
+    /// The depth of the object's sparse 3D points in each view (DS-NeRF style).
+    Sparse,
+    /// The scene's depth images.
+    Dense,
+}
+
+impl std::str::FromStr for DepthMode {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "none" => Ok(DepthMode::None),
+            "sparse" => Ok(DepthMode::Sparse),
+            "dense" => Ok(DepthMode::Dense),
+            _ => Err(format!("depth must be sparse, dense or none, not '{s}'")),
+        }
+    }
+}
+
+impl std::fmt::Display for DepthMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            DepthMode::None => "none",
+            DepthMode::Sparse => "sparse",
+            DepthMode::Dense => "dense",
+        })
+    }
+}
+
+/// How to train a field on a scene.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    /// Train on images downscaled by this factor (box filter).
+    pub downscale: u32,
+    /// Stop after this many seconds of training (None: the steps or a plateau).
+    pub time_budget: Option<f64>,
+    pub depth: DepthMode,
+    pub seed: u64,
+    /// Most optimisation steps (the learning-rate schedule spans them).
+    pub steps: usize,
+    pub setup: SetupConfig,
+    /// Views left out of training (e.g. the ones segmentation found obstructed, or held out).
+    pub exclude_views: Vec<String>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            downscale: 1,
+            time_budget: None,
+            depth: DepthMode::None,
+            seed: 0,
+            steps: TrainConfig::default().steps,
+            setup: SetupConfig::default(),
+            exclude_views: vec![],
+        }
+    }
+}
+
+/// What training did.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrainReport {
+    /// How the box and grid were chosen (None when resuming a model).
+    pub setup: Option<SetupReport>,
+    pub run: RunSummary,
+    pub vertices: usize,
+    pub dims: [usize; 3],
+    pub memory_bytes: usize,
+    pub occupied_cells: usize,
+    pub depth_targets: usize,
+}
+
+/// A trained field with its optimiser state, and the report.
+pub struct Fitted {
+    pub trainer: Trainer,
+    pub report: TrainReport,
+}
+
+/// Train a field on `scene`'s views with `masks` (or continue `resume`); `progress` sees every
+/// step.
+pub fn fit_scene(
+    scene: &Scene,
+    masks: &MaskSource,
+    opts: &FitOptions,
+    resume: Option<Model>,
+    progress: &mut dyn FnMut(&StepStats),
+) -> Result<Fitted> {
+    if opts.downscale == 0 {
+        return Err(Error::invalid("--downscale must be at least 1"));
+    }
+    let mut views = load_views(scene, masks, opts.downscale)?;
+    let depth_targets = match opts.depth {
+        DepthMode::None => 0,
+        DepthMode::Sparse => add_sparse_depth(&mut views, scene, opts.downscale)?,
+        DepthMode::Dense => add_dense_depth(&mut views, scene, opts.downscale)?,
+    };
+    views.retain(|v| !opts.exclude_views.contains(&v.name));
+    if views.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: no views left to train on",
+            scene.source.display()
+        )));
+    }
+    let cfg = TrainConfig {
+        seed: opts.seed,
+        steps: opts.steps,
+        ..Default::default()
+    };
+    let (mut trainer, rays, setup) = match resume {
+        None => {
+            let (t, r, s) = prepare(&views, &opts.setup, cfg)?;
+            (t, r, Some(s))
+        }
+        Some(m) => {
+            let t = Trainer::from_model(m, cfg);
+            let rays = RaySet::build(&views, t.field.box_min, t.field.box_max);
+            (t, rays, None)
+        }
+    };
+    let stop = StopRule {
+        time_budget: opts.time_budget,
+        plateau_db: Some(0.01),
+        window: 500,
+    };
+    let summary = run(&mut trainer, &views, &rays, &stop, progress);
+    let report = TrainReport {
+        setup,
+        run: summary,
+        vertices: trainer.field.grid.num_vertices(),
+        dims: trainer.field.grid.dims,
+        memory_bytes: trainer.memory_bytes(),
+        occupied_cells: trainer.field.occupied_cells(),
+        depth_targets,
+    };
+    Ok(Fitted { trainer, report })
+}
+
+/// The notes a model file keeps about its training: where it came from (scene, downscale, the
+/// world's up direction, for meshing without the scene) and what happened.
+pub fn model_notes(scene: &Scene, opts: &FitOptions, report: &TrainReport) -> serde_json::Value {
+    let (up, up_why) = scene.up();
+    serde_json::json!({
+        "downscale": opts.downscale,
+        "setup": report.setup,
+        "run": report.run,
+        "scene": scene.source,
+        "up": up.to_array(),
+        "up_why": up_why,
+        "depth": opts.depth,
+        "depth_targets": report.depth_targets,
+    })
+}

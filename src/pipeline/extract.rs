@@ -1,0 +1,323 @@
+//! `objnerf extract`: click to mesh in one command. Segment (SAM + propagation) → train one field
+//! per object on its ok views → marching cubes → turntable renders, with progress reported per
+//! stage and a report of what each stage did, how long it took and the memory it peaked at. The
+//! scene, the masks and each field stay in memory from stage to stage; files are written for the
+//! user, never read back.
+//!
+//! Layout of the run folder (written under a temporary name, renamed into place at the end):
+//! ```text
+//! RUN/report.json                 everything below, summarised
+//! RUN/mesh.glb                    every object, one node each (+Y up)
+//! RUN/segment/                    `objnerf segment`'s output: masks/<object>/, <object>_points.ply,
+//!                                 contact_sheet_<object>.png, report.json
+//! RUN/<object>/model.objf         the object's field
+//! RUN/<object>/mesh.glb, mesh.ply the object alone (.ply in the capture's frame)
+//! RUN/<object>/turntable/         frame_NNN.png, and turntable.gif beside it
+//! ```
+
+use crate::error::{Error, Result};
+use crate::field::{fit_scene, model_notes, FitOptions, MaskSource, TrainReport};
+use crate::mesh::frame::GltfFrame;
+use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
+use crate::mesh::{gltf::write_glbs, io::write_mesh, Mesh};
+use crate::render::{write_turntable, TurntableOptions};
+use crate::sam::Segmenter;
+use crate::scene::Scene;
+use crate::segment::output::masks_dir;
+use crate::segment::{
+    segment_scene, ObjectPrompt, ObjectSegmentation, PropagationOptions, ViewStatus,
+};
+use crate::util::{mem::peak_rss_mib, AtomicDir, Progress};
+use glam::DVec3;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Everything `extract` can be told.
+#[derive(Clone, Debug)]
+pub struct ExtractOptions {
+    pub propagation: PropagationOptions,
+    /// Training, per object (its `exclude_views` are filled in from the segmentation).
+    pub fit: FitOptions,
+    pub mesh: FieldMeshOptions,
+    pub turntable: TurntableOptions,
+    pub overwrite: bool,
+    /// Hold out every n-th view (index % n == n / 2) from training, for evaluation (0: none).
+    pub hold_out_every: usize,
+}
+
+impl Default for ExtractOptions {
+    fn default() -> Self {
+        ExtractOptions {
+            propagation: PropagationOptions::default(),
+            fit: FitOptions {
+                time_budget: Some(120.0),
+                depth: crate::field::DepthMode::Sparse,
+                ..Default::default()
+            },
+            mesh: FieldMeshOptions::default(),
+            turntable: TurntableOptions::default(),
+            overwrite: false,
+            hold_out_every: 0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SegmentationSummary {
+    pub num_views: usize,
+    pub num_ok: usize,
+    pub num_obstructed: usize,
+    pub num_absent: usize,
+    pub num_points: usize,
+    /// Views segmentation marked ok (held-out ones included).
+    pub ok_views: Vec<String>,
+    /// Views left out of training because segmentation did not mark them ok.
+    pub excluded: Vec<String>,
+    /// Ok views held out of training for evaluation.
+    pub held_out: Vec<String>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ObjectReport {
+    pub name: String,
+    pub segmentation: SegmentationSummary,
+    pub train: TrainReport,
+    pub train_seconds: f64,
+    pub mesh: FieldMeshReport,
+    pub mesh_seconds: f64,
+    pub render_seconds: f64,
+    pub model: PathBuf,
+    pub mesh_glb: PathBuf,
+    pub turntable_gif: PathBuf,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct StageSeconds {
+    pub segment: f64,
+    pub train: f64,
+    pub mesh: f64,
+    pub render: f64,
+    pub total: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ExtractReport {
+    pub scene: PathBuf,
+    pub out: PathBuf,
+    pub objects: Vec<ObjectReport>,
+    pub seconds: StageSeconds,
+    pub segment_encoder_runs: usize,
+    pub peak_rss_mib: u64,
+    pub frame: GltfFrame,
+    /// Filled in by callers that know the truth (the demo).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<serde_json::Value>,
+}
+
+/// Run the whole pipeline for `prompts` on `scene`, writing `out`. `seg` is SAM; `progress`
+/// hears one stage per step of the work (segment, then train, render per object).
+pub fn extract(
+    scene: &Scene,
+    prompts: &[ObjectPrompt],
+    opts: &ExtractOptions,
+    seg: &Segmenter,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<ExtractReport> {
+    if opts.fit.downscale == 0 {
+        return Err(Error::invalid("--downscale must be at least 1"));
+    }
+    let t0 = Instant::now();
+    let dest = AtomicDir::new(out, opts.overwrite)?;
+    let root = dest.path().to_path_buf();
+    let run = RunFolder {
+        root: root.clone(),
+        out: out.to_path_buf(),
+    };
+    let seg_dir = root.join("segment");
+    let (seg_report, segs) = segment_scene(
+        scene,
+        prompts,
+        &opts.propagation,
+        seg,
+        &seg_dir,
+        false,
+        progress,
+    )?;
+    let t_segment = t0.elapsed().as_secs_f64();
+    let frame = GltfFrame::for_scene(scene);
+
+    let mut objects = Vec::new();
+    let mut meshes: Vec<Mesh> = Vec::new();
+    for obj in &segs {
+        let (report, mesh) = extract_object(scene, obj, opts, &frame, &run, progress)?;
+        objects.push(report);
+        meshes.push(mesh);
+    }
+    let turned: Vec<Mesh> = meshes
+        .iter()
+        .map(|m| {
+            let mut t = m.clone();
+            t.transform(frame.matrix());
+            t
+        })
+        .collect();
+    write_glbs(&turned, &root.join("mesh.glb"), Some(frame.extras()))?;
+
+    let sum = |f: fn(&ObjectReport) -> f64| objects.iter().map(f).sum();
+    let report = ExtractReport {
+        scene: scene.source.clone(),
+        out: out.to_path_buf(),
+        seconds: StageSeconds {
+            segment: t_segment,
+            train: sum(|o| o.train_seconds),
+            mesh: sum(|o| o.mesh_seconds),
+            render: sum(|o| o.render_seconds),
+            total: t0.elapsed().as_secs_f64(),
+        },
+        objects,
+        segment_encoder_runs: seg_report.encoder_runs,
+        peak_rss_mib: peak_rss_mib(),
+        frame,
+        truth: None,
+    };
+    write_report(&root.join("report.json"), &report)?;
+    dest.commit()?;
+    Ok(report)
+}
+
+/// The run folder being written (`root`, a temporary name) and where it will end up (`out`):
+/// paths in the report point at the final place.
+struct RunFolder {
+    root: PathBuf,
+    out: PathBuf,
+}
+
+impl RunFolder {
+    fn final_path(&self, p: &Path) -> PathBuf {
+        self.out.join(p.strip_prefix(&self.root).unwrap_or(p))
+    }
+}
+
+/// Train, mesh and render one segmented object into `RUN/<object>/`.
+fn extract_object(
+    scene: &Scene,
+    obj: &ObjectSegmentation,
+    opts: &ExtractOptions,
+    frame: &GltfFrame,
+    run: &RunFolder,
+    progress: &dyn Progress,
+) -> Result<(ObjectReport, Mesh)> {
+    let dir = run.root.join(&obj.name);
+    let summary = summarise(obj, opts.hold_out_every);
+    if summary.num_ok == 0 {
+        let sheet = run
+            .root
+            .join("segment")
+            .join(format!("contact_sheet_{}.png", obj.name));
+        return Err(Error::invalid(format!(
+            "'{}': segmentation found no unobstructed view to train on (see {})",
+            obj.name,
+            run.final_path(&sheet).display()
+        )));
+    }
+
+    let t = Instant::now();
+    let fit = FitOptions {
+        exclude_views: [summary.excluded.clone(), summary.held_out.clone()].concat(),
+        ..opts.fit.clone()
+    };
+    let masks = MaskSource::Images(Arc::new(obj.views.iter().map(|v| v.mask.clone()).collect()));
+    progress.begin(&format!("train {}", obj.name), fit.steps as u64);
+    let fitted = fit_scene(scene, &masks, &fit, None, &mut |s| {
+        progress.advance(s.step as u64, s.detail())
+    })?;
+    progress.end();
+    let model = dir.join("model.objf");
+    let notes = model_notes(scene, &fit, &fitted.report);
+    crate::field::io::save(
+        &model,
+        &fitted.trainer.parts(crate::field::io::IDENTITY, notes),
+    )?;
+    let train_seconds = t.elapsed().as_secs_f64();
+    let field = &fitted.trainer.field;
+
+    let t = Instant::now();
+    let (mesh, mesh_report) = mesh_field(field, &obj.name, &opts.mesh)
+        .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
+    write_mesh(&mesh, frame, &dir.join("mesh.glb"))?;
+    write_mesh(&mesh, frame, &dir.join("mesh.ply"))?;
+    let mesh_seconds = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    progress.begin(
+        &format!("render {}", obj.name),
+        opts.turntable.frames as u64,
+    );
+    let gif = dir.join("turntable.gif");
+    let (lo, hi) = mesh.bounds();
+    write_turntable(
+        field,
+        (
+            glam::Vec3::from(lo).as_dvec3(),
+            glam::Vec3::from(hi).as_dvec3(),
+        ),
+        DVec3::from_array(frame.up),
+        &opts.turntable,
+        [1.0; 3],
+        &dir.join("turntable"),
+        &gif,
+        progress,
+    )?;
+    progress.end();
+    let report = ObjectReport {
+        name: obj.name.clone(),
+        segmentation: summary,
+        train: fitted.report,
+        train_seconds,
+        mesh: mesh_report,
+        mesh_seconds,
+        render_seconds: t.elapsed().as_secs_f64(),
+        model: run.final_path(&model),
+        mesh_glb: run.final_path(&dir.join("mesh.glb")),
+        turntable_gif: run.final_path(&gif),
+    };
+    Ok((report, mesh))
+}
+
+/// Which views an object trains on: ok views, less every `hold_out_every`-th (index % n == n/2)
+/// held out for evaluation.
+fn summarise(obj: &ObjectSegmentation, hold_out_every: usize) -> SegmentationSummary {
+    let names = |keep: &dyn Fn(usize, ViewStatus) -> bool| -> Vec<String> {
+        obj.views
+            .iter()
+            .enumerate()
+            .filter(|(i, v)| keep(*i, v.status))
+            .map(|(_, v)| v.view.clone())
+            .collect()
+    };
+    let count = |s| obj.views.iter().filter(|v| v.status == s).count();
+    let n = hold_out_every;
+    SegmentationSummary {
+        num_views: obj.views.len(),
+        num_ok: count(ViewStatus::Ok),
+        num_obstructed: count(ViewStatus::Obstructed),
+        num_absent: count(ViewStatus::Absent),
+        num_points: obj.points.len(),
+        ok_views: names(&|_, s| s == ViewStatus::Ok),
+        excluded: names(&|_, s| s != ViewStatus::Ok),
+        held_out: names(&|i, s| n > 0 && i % n == n / 2 && s == ViewStatus::Ok),
+    }
+}
+
+pub fn write_report(path: &Path, report: &ExtractReport) -> Result<()> {
+    let json = serde_json::to_string_pretty(report).map_err(|e| Error::json(path, e))?;
+    crate::util::atomic::write_bytes_atomic(path, json.as_bytes())
+}
+
+/// Where `extract` put an object's masks, given the run folder.
+pub fn object_masks_dir(run: &Path, object: &str) -> PathBuf {
+    masks_dir(&run.join("segment"), object)
+}

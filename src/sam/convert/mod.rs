@@ -1,0 +1,67 @@
+//! MobileSAM's ONNX encoder and decoder, written from the official PyTorch checkpoint
+//! (`mobile_sam.pt`) without Python or PyTorch: [`torch`] reads the checkpoint (a zip of
+//! raw storages and a pickled state dict, [`pickle`]), [`encoder`] and [`decoder`] build the two
+//! graphs with [`graph`], and [`onnx_proto`] is the protobuf schema they are written in.
+//!
+//! The graphs have the reference export's inputs, outputs and opset (17) and the same operator
+//! choices, so ONNX Runtime optimises them the same way; the output is deterministic (same
+//! checkpoint, same bytes).
+
+pub mod decoder;
+pub mod encoder;
+pub mod graph;
+pub mod onnx_proto;
+pub mod pickle;
+pub mod torch;
+
+use crate::error::{Error, Result};
+use crate::util::atomic::make_readable;
+use crate::util::digest::sha256_file;
+use prost::Message;
+use std::path::Path;
+
+/// The official MobileSAM checkpoint's sha256: only this file is converted.
+pub const CHECKPOINT_SHA256: &str =
+    "6dbb90523a35330fedd7f1d3dfc66f995213d81b29a5ca8108dbcdd4e37d6c2f";
+
+/// The two serialised models.
+pub struct SamOnnx {
+    pub encoder: Vec<u8>,
+    pub decoder: Vec<u8>,
+}
+
+/// Check that `checkpoint` is the official MobileSAM file (by sha256), then build both models.
+pub fn mobile_sam_onnx(checkpoint: &Path) -> Result<SamOnnx> {
+    verify_checkpoint(checkpoint)?;
+    let sd = torch::StateDict::load(checkpoint)?;
+    Ok(SamOnnx {
+        encoder: encoder::build(&sd)?.encode_to_vec(),
+        decoder: decoder::build(&sd)?.encode_to_vec(),
+    })
+}
+
+/// [`mobile_sam_onnx`], written atomically to the two paths.
+pub fn write_mobile_sam_onnx(checkpoint: &Path, encoder: &Path, decoder: &Path) -> Result<()> {
+    let m = mobile_sam_onnx(checkpoint)?;
+    for (path, bytes) in [(encoder, &m.encoder), (decoder, &m.decoder)] {
+        crate::util::atomic::write_bytes_atomic(path, bytes)?;
+        make_readable(path)?;
+    }
+    Ok(())
+}
+
+/// The graphs are written for this one checkpoint: anything else (a truncated download, another
+/// model) is refused before it is parsed.
+pub fn verify_checkpoint(checkpoint: &Path) -> Result<()> {
+    let h = sha256_file(checkpoint)?;
+    if h != CHECKPOINT_SHA256 {
+        let size = std::fs::metadata(checkpoint).map(|m| m.len()).unwrap_or(0);
+        return Err(Error::format(
+            checkpoint,
+            format!(
+                "sha256 {h} ({size} bytes) is not the official MobileSAM checkpoint ({CHECKPOINT_SHA256}, 40728226 bytes): a truncated or different file; delete it and run `objnerf models install`"
+            ),
+        ));
+    }
+    Ok(())
+}
