@@ -10,7 +10,7 @@
 use super::grid::Grid;
 use super::model::Field;
 use super::rays::RaySet;
-use super::render::{backward, distortion, forward, RenderOptions, Sample};
+use super::render::{backward, distortion, forward, RayOut, RenderOptions, Sample};
 use super::view::View;
 use crate::util::Rng;
 use rayon::prelude::*;
@@ -276,112 +276,28 @@ impl Trainer {
         let cfg = self.cfg.clone();
         let step = self.step;
         let clock = std::time::Instant::now();
-        let mut rng = Rng::fork(cfg.seed, step as u64);
-        let mut picks: Vec<(u32, u32)> = (0..cfg.batch)
-            .map(|_| rays.rays[rng.below(rays.rays.len())])
-            .collect();
-        if cfg.depth_weight > 0.0 && !rays.depth_rays.is_empty() {
-            for _ in 0..cfg.depth_batch {
-                picks.push(rays.depth_rays[rng.below(rays.depth_rays.len())]);
-            }
-        }
-        // Rays of one view and nearby pixels cross the same voxels: ordering the batch keeps a
-        // chunk's grid reads in cache. The sum over the batch does not depend on the order.
-        picks.sort_unstable();
+        let picks = draw_batch(&cfg, step, rays);
         let nchunks = picks.len().div_ceil(CHUNK);
         self.records.resize_with(nchunks, Vec::new);
         let (nslabs, zper) = self.slabs();
         let field = &self.field;
-        let plane = field.grid.dims[0] * field.grid.dims[1];
-        let ch = field.grid.channels;
-        let stride = ch + 4;
-        let inv_b = 1.0 / picks.len() as f32;
-        let inv_voxel = 1.0 / field.config.base_voxel;
-        let unit = field.config.base_voxel;
-        let delta = cfg.render.step * field.voxel / field.config.base_voxel;
+        let stride = field.grid.channels + 4;
+        let ctx = StepContext {
+            field,
+            cfg: &cfg,
+            views,
+            step,
+            inv_b: 1.0 / picks.len() as f32,
+            plane: field.grid.dims[0] * field.grid.dims[1],
+            nslabs,
+            zper,
+        };
         let stats: Vec<(f64, f64, usize)> = self
             .records
             .par_iter_mut()
             .zip(picks.par_chunks(CHUNK))
             .enumerate()
-            .map(|(ci, (rec, chunk))| {
-                rec.resize_with(nslabs, Vec::new);
-                rec.iter_mut().for_each(|r| r.clear());
-                let mut samples: Vec<Sample> = Vec::with_capacity(512);
-                let mut g_w: Vec<f32> = Vec::new();
-                let (mut loss, mut mse, mut nsamp) = (0f64, 0f64, 0usize);
-                for (ri, &(vi, px)) in chunk.iter().enumerate() {
-                    let mut r = Rng::fork(
-                        cfg.seed ^ 0x5eed,
-                        ((step as u64) << 24) | (ci * CHUNK + ri) as u64,
-                    );
-                    let view = &views[vi as usize];
-                    let (o, d) = view.ray(px);
-                    let bg = [r.f32(), r.f32(), r.f32()];
-                    let p = view.rgba[px as usize];
-                    let a = p[3] as f32 / 255.0;
-                    let tgt = [0, 1, 2].map(|c| p[c] as f32 / 255.0 + (1.0 - a) * bg[c]);
-                    let out = forward(field, &cfg.render, o, d, r.f32(), bg, &mut samples);
-                    nsamp += samples.len();
-                    let mut g = [0f32; 3];
-                    let mut e2 = 0f32;
-                    for c in 0..3 {
-                        let e = out.rgb[c] - tgt[c];
-                        e2 += e * e;
-                        g[c] = 2.0 * e * inv_b / 3.0;
-                    }
-                    let ea = out.alpha - a;
-                    let mut ga = 2.0 * cfg.alpha_weight * ea * inv_b;
-                    mse += e2 as f64 / 3.0;
-                    loss += (e2 / 3.0 + cfg.alpha_weight * ea * ea) as f64;
-                    let mut gd = 0.0;
-                    if let Some(dt) = view.depth.as_ref().map(|d| d[px as usize]) {
-                        // The depth of the opaque part, D = sum w t / A with A = sum w: the
-                        // unnormalised sum would read a 0.5% opacity deficit at 2 m as a 1 cm
-                        // depth error (and did: the demo's surfaces came out a voxel too far).
-                        // Rays still mostly transparent are left to the alpha loss.
-                        if dt > 0.0 && cfg.depth_weight > 0.0 && out.alpha > MIN_DEPTH_ALPHA {
-                            let dn = out.depth / out.alpha;
-                            let ed = (dn - dt) * inv_voxel;
-                            let g = 2.0 * cfg.depth_weight * ed * inv_voxel * inv_b;
-                            gd = g / out.alpha;
-                            ga -= g * dn / out.alpha;
-                            loss += (cfg.depth_weight * ed * ed) as f64;
-                        }
-                    }
-                    if samples.is_empty() {
-                        continue;
-                    }
-                    g_w.clear();
-                    if cfg.distortion_weight > 0.0 {
-                        let l = distortion(&samples, unit, delta, &mut g_w);
-                        loss += (cfg.distortion_weight * l) as f64;
-                        let k = cfg.distortion_weight * inv_b;
-                        g_w.iter_mut().for_each(|g| *g *= k);
-                    }
-                    backward(
-                        field,
-                        &cfg.render,
-                        d,
-                        bg,
-                        &samples,
-                        g,
-                        ga,
-                        gd,
-                        &g_w,
-                        |s, gr| {
-                            let z = s.base as usize / plane;
-                            let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
-                            for b in &mut rec[sa..=sb] {
-                                b.push(f32::from_bits(s.base));
-                                b.extend_from_slice(&s.frac);
-                                b.extend_from_slice(gr);
-                            }
-                        },
-                    );
-                }
-                (loss, mse, nsamp)
-            })
+            .map(|(ci, (rec, chunk))| ctx.chunk_gradients(ci, chunk, rec))
             .collect();
         let (loss, mse, nsamp) = stats
             .iter()
@@ -560,6 +476,157 @@ impl Trainer {
             c1: 1.0 - cfg.beta1.powi(t),
             c2: (1.0 - cfg.beta2.powi(t)).sqrt(),
             lr: [cfg.lr_density * decay, cfg.lr_color * decay],
+        }
+    }
+}
+/// The rays of one step: `batch` drawn uniformly from the kept rays, plus `depth_batch` from
+/// those with a depth target, sorted so that a chunk's rays (one view, nearby pixels) cross the
+/// same voxels and its grid reads stay in cache (the sum over the batch does not depend on the
+/// order).
+fn draw_batch(cfg: &TrainConfig, step: usize, rays: &RaySet) -> Vec<(u32, u32)> {
+    let mut rng = Rng::fork(cfg.seed, step as u64);
+    let mut picks: Vec<(u32, u32)> = (0..cfg.batch)
+        .map(|_| rays.rays[rng.below(rays.rays.len())])
+        .collect();
+    if cfg.depth_weight > 0.0 && !rays.depth_rays.is_empty() {
+        for _ in 0..cfg.depth_batch {
+            picks.push(rays.depth_rays[rng.below(rays.depth_rays.len())]);
+        }
+    }
+    picks.sort_unstable();
+    picks
+}
+
+/// What every chunk of a step shares.
+struct StepContext<'a> {
+    field: &'a Field,
+    cfg: &'a TrainConfig,
+    views: &'a [View],
+    step: usize,
+    /// 1 / rays in the batch: the loss is a mean.
+    inv_b: f32,
+    /// Vertices per z-plane, and the z-slabs the gradient records are bucketed by.
+    plane: usize,
+    nslabs: usize,
+    zper: usize,
+}
+
+/// One ray's loss and the gradients it hands the backward pass.
+struct RayLoss {
+    loss: f64,
+    /// Squared colour error (mean over the channels), for the batch PSNR.
+    sq_err: f64,
+    g_rgb: [f32; 3],
+    g_alpha: f32,
+    g_depth: f32,
+}
+
+impl StepContext<'_> {
+    /// Forward and backward for a chunk of rays (`ci`: its index in the batch): gradient
+    /// records into `rec` (one list per z-slab), and (loss, squared error, samples) summed.
+    fn chunk_gradients(
+        &self,
+        ci: usize,
+        chunk: &[(u32, u32)],
+        rec: &mut Vec<Vec<f32>>,
+    ) -> (f64, f64, usize) {
+        let (cfg, field) = (self.cfg, self.field);
+        rec.resize_with(self.nslabs, Vec::new);
+        rec.iter_mut().for_each(|r| r.clear());
+        let unit = field.config.base_voxel;
+        let delta = cfg.render.step * field.voxel / field.config.base_voxel;
+        let mut samples: Vec<Sample> = Vec::with_capacity(512);
+        let mut g_w: Vec<f32> = Vec::new();
+        let (mut loss, mut mse, mut nsamp) = (0f64, 0f64, 0usize);
+        for (ri, &(vi, px)) in chunk.iter().enumerate() {
+            let mut r = Rng::fork(
+                cfg.seed ^ 0x5eed,
+                ((self.step as u64) << 24) | (ci * CHUNK + ri) as u64,
+            );
+            let view = &self.views[vi as usize];
+            let (o, d) = view.ray(px);
+            let bg = [r.f32(), r.f32(), r.f32()];
+            let out = forward(field, &cfg.render, o, d, r.f32(), bg, &mut samples);
+            nsamp += samples.len();
+            let l = self.ray_loss(view, px, bg, &out);
+            mse += l.sq_err;
+            loss += l.loss;
+            if samples.is_empty() {
+                continue;
+            }
+            g_w.clear();
+            if cfg.distortion_weight > 0.0 {
+                let dl = distortion(&samples, unit, delta, &mut g_w);
+                loss += (cfg.distortion_weight * dl) as f64;
+                let k = cfg.distortion_weight * self.inv_b;
+                g_w.iter_mut().for_each(|g| *g *= k);
+            }
+            let (plane, nslabs, zper) = (self.plane, self.nslabs, self.zper);
+            backward(
+                field,
+                &cfg.render,
+                d,
+                bg,
+                &samples,
+                l.g_rgb,
+                l.g_alpha,
+                l.g_depth,
+                &g_w,
+                |s, gr| {
+                    let z = s.base as usize / plane;
+                    let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
+                    for b in &mut rec[sa..=sb] {
+                        b.push(f32::from_bits(s.base));
+                        b.extend_from_slice(&s.frac);
+                        b.extend_from_slice(gr);
+                    }
+                },
+            );
+        }
+        (loss, mse, nsamp)
+    }
+
+    /// The losses of one ray: colour against the pixel composited on the ray's random
+    /// background (which also supervises alpha), the squared alpha error, and the depth of the
+    /// opaque part against a depth target.
+    fn ray_loss(&self, view: &View, px: u32, bg: [f32; 3], out: &RayOut) -> RayLoss {
+        let cfg = self.cfg;
+        let inv_b = self.inv_b;
+        let p = view.rgba[px as usize];
+        let a = p[3] as f32 / 255.0;
+        let tgt = [0, 1, 2].map(|c| p[c] as f32 / 255.0 + (1.0 - a) * bg[c]);
+        let mut g_rgb = [0f32; 3];
+        let mut e2 = 0f32;
+        for c in 0..3 {
+            let e = out.rgb[c] - tgt[c];
+            e2 += e * e;
+            g_rgb[c] = 2.0 * e * inv_b / 3.0;
+        }
+        let ea = out.alpha - a;
+        let mut g_alpha = 2.0 * cfg.alpha_weight * ea * inv_b;
+        let mut loss = (e2 / 3.0 + cfg.alpha_weight * ea * ea) as f64;
+        let mut g_depth = 0.0;
+        if let Some(dt) = view.depth.as_ref().map(|d| d[px as usize]) {
+            // The depth of the opaque part, D = sum w t / A with A = sum w: the unnormalised
+            // sum would read a 0.5% opacity deficit at 2 m as a 1 cm depth error (and did: the
+            // demo's surfaces came out a voxel too far). Rays still mostly transparent are left
+            // to the alpha loss.
+            if dt > 0.0 && cfg.depth_weight > 0.0 && out.alpha > MIN_DEPTH_ALPHA {
+                let inv_voxel = 1.0 / self.field.config.base_voxel;
+                let dn = out.depth / out.alpha;
+                let ed = (dn - dt) * inv_voxel;
+                let g = 2.0 * cfg.depth_weight * ed * inv_voxel * inv_b;
+                g_depth = g / out.alpha;
+                g_alpha -= g * dn / out.alpha;
+                loss += (cfg.depth_weight * ed * ed) as f64;
+            }
+        }
+        RayLoss {
+            loss,
+            sq_err: e2 as f64 / 3.0,
+            g_rgb,
+            g_alpha,
+            g_depth,
         }
     }
 }

@@ -36,49 +36,96 @@ pub fn write_glbs(meshes: &[Mesh], path: &Path, extras: Option<serde_json::Value
     crate::util::atomic::write_bytes_atomic(path, &bytes)
 }
 
-fn glb_bytes(
-    meshes: &[Mesh],
-    extras: Option<serde_json::Value>,
-) -> std::result::Result<Vec<u8>, String> {
-    let mut bin: Vec<u8> = Vec::new();
-    let mut root = json::Root::default();
-    root.asset.generator = Some(format!("objnerf {}", env!("CARGO_PKG_VERSION")));
-    let buffer = root.push(json::Buffer {
-        byte_length: USize64(0),
-        extensions: None,
-        extras: Default::default(),
-        name: None,
-        uri: None,
-    });
+/// A glTF document and its binary chunk, built up one mesh at a time.
+struct GlbBuilder {
+    root: json::Root,
+    bin: Vec<u8>,
+    buffer: json::Index<json::Buffer>,
+}
 
-    let view =
-        |root: &mut json::Root, bin: &mut Vec<u8>, data: &[u8], target: json::buffer::Target| {
-            while bin.len() % 4 != 0 {
-                bin.push(0);
-            }
-            let offset = bin.len();
-            bin.extend_from_slice(data);
-            root.push(json::buffer::View {
-                buffer,
-                byte_length: USize64(data.len() as u64),
-                byte_offset: Some(USize64(offset as u64)),
-                byte_stride: None,
-                extensions: None,
-                extras: Default::default(),
-                name: None,
-                target: Some(Valid(target)),
-            })
-        };
-    let f32_bytes =
-        |v: &[[f32; 3]]| -> Vec<u8> { v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect() };
-    let accessor = |root: &mut json::Root,
-                    view: json::Index<json::buffer::View>,
-                    count: usize,
-                    ty: json::accessor::Type,
-                    ct: json::accessor::ComponentType,
-                    min: Option<serde_json::Value>,
-                    max: Option<serde_json::Value>| {
-        root.push(json::Accessor {
+impl GlbBuilder {
+    fn new() -> Self {
+        let mut root = json::Root::default();
+        root.asset.generator = Some(format!("objnerf {}", env!("CARGO_PKG_VERSION")));
+        let buffer = root.push(json::Buffer {
+            byte_length: USize64(0),
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            uri: None,
+        });
+        GlbBuilder {
+            root,
+            bin: Vec::new(),
+            buffer,
+        }
+    }
+
+    /// Append `data` to the binary chunk (4-byte aligned) as a buffer view.
+    fn view(
+        &mut self,
+        data: &[u8],
+        target: json::buffer::Target,
+    ) -> json::Index<json::buffer::View> {
+        pad_to_4(&mut self.bin, 0);
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(data);
+        self.root.push(json::buffer::View {
+            buffer: self.buffer,
+            byte_length: USize64(data.len() as u64),
+            byte_offset: Some(USize64(offset as u64)),
+            byte_stride: None,
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            target: Some(Valid(target)),
+        })
+    }
+
+    /// A vertex attribute of 3-vectors, with its bounds when given (glTF requires them on
+    /// POSITION).
+    fn vec3s(
+        &mut self,
+        v: &[[f32; 3]],
+        bounds: Option<([f32; 3], [f32; 3])>,
+    ) -> json::Index<json::Accessor> {
+        let bytes: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&bytes, json::buffer::Target::ArrayBuffer);
+        self.accessor(
+            view,
+            v.len(),
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::F32,
+            bounds.map(|(lo, hi)| (serde_json::json!(lo), serde_json::json!(hi))),
+        )
+    }
+
+    fn indices(&mut self, triangles: &[[u32; 3]]) -> json::Index<json::Accessor> {
+        let bytes: Vec<u8> = triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let view = self.view(&bytes, json::buffer::Target::ElementArrayBuffer);
+        self.accessor(
+            view,
+            triangles.len() * 3,
+            json::accessor::Type::Scalar,
+            json::accessor::ComponentType::U32,
+            None,
+        )
+    }
+
+    fn accessor(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        ty: json::accessor::Type,
+        ct: json::accessor::ComponentType,
+        bounds: Option<(serde_json::Value, serde_json::Value)>,
+    ) -> json::Index<json::Accessor> {
+        let (min, max) = bounds.unzip();
+        self.root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: None,
             count: USize64(count as u64),
@@ -92,88 +139,26 @@ fn glb_bytes(
             normalized: false,
             sparse: None,
         })
-    };
+    }
 
-    let node_extras = match extras {
-        Some(v) => Some(serde_json::value::to_raw_value(&v).map_err(|e| e.to_string())?),
-        None => None,
-    };
-    let mut nodes = Vec::new();
-    for mesh in meshes {
-        let (lo, hi) = mesh.bounds();
-        let pv = view(
-            &mut root,
-            &mut bin,
-            &f32_bytes(&mesh.positions),
-            json::buffer::Target::ArrayBuffer,
-        );
-        let pos = accessor(
-            &mut root,
-            pv,
-            mesh.positions.len(),
-            json::accessor::Type::Vec3,
-            json::accessor::ComponentType::F32,
-            Some(serde_json::json!(lo)),
-            Some(serde_json::json!(hi)),
-        );
-        let nv = view(
-            &mut root,
-            &mut bin,
-            &f32_bytes(&mesh.normals),
-            json::buffer::Target::ArrayBuffer,
-        );
-        let nrm = accessor(
-            &mut root,
-            nv,
-            mesh.normals.len(),
-            json::accessor::Type::Vec3,
-            json::accessor::ComponentType::F32,
-            None,
-            None,
-        );
+    /// One mesh (positions, normals, optional colours, indices, a matte material) on a named
+    /// node.
+    fn mesh_node(
+        &mut self,
+        mesh: &Mesh,
+        extras: Option<Box<serde_json::value::RawValue>>,
+    ) -> json::Index<json::Node> {
         let mut attributes = std::collections::BTreeMap::new();
+        let pos = self.vec3s(&mesh.positions, Some(mesh.bounds()));
         attributes.insert(Valid(json::mesh::Semantic::Positions), pos);
+        let nrm = self.vec3s(&mesh.normals, None);
         attributes.insert(Valid(json::mesh::Semantic::Normals), nrm);
         if let Some(colors) = &mesh.colors {
-            let cv = view(
-                &mut root,
-                &mut bin,
-                &f32_bytes(colors),
-                json::buffer::Target::ArrayBuffer,
-            );
-            let col = accessor(
-                &mut root,
-                cv,
-                colors.len(),
-                json::accessor::Type::Vec3,
-                json::accessor::ComponentType::F32,
-                None,
-                None,
-            );
+            let col = self.vec3s(colors, None);
             attributes.insert(Valid(json::mesh::Semantic::Colors(0)), col);
         }
-        let idx: Vec<u8> = mesh
-            .triangles
-            .iter()
-            .flatten()
-            .flat_map(|i| i.to_le_bytes())
-            .collect();
-        let iv = view(
-            &mut root,
-            &mut bin,
-            &idx,
-            json::buffer::Target::ElementArrayBuffer,
-        );
-        let indices = accessor(
-            &mut root,
-            iv,
-            mesh.triangles.len() * 3,
-            json::accessor::Type::Scalar,
-            json::accessor::ComponentType::U32,
-            None,
-            None,
-        );
-        let material = root.push(json::Material {
+        let indices = self.indices(&mesh.triangles);
+        let material = self.root.push(json::Material {
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
                 metallic_factor: json::material::StrengthFactor(0.0),
                 ..Default::default()
@@ -182,7 +167,7 @@ fn glb_bytes(
             double_sided: false,
             ..Default::default()
         });
-        let gmesh = root.push(json::Mesh {
+        let gmesh = self.root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
             name: Some(mesh.name.clone()),
@@ -197,39 +182,64 @@ fn glb_bytes(
             }],
             weights: None,
         });
-        nodes.push(root.push(json::Node {
+        self.root.push(json::Node {
             mesh: Some(gmesh),
             name: Some(mesh.name.clone()),
-            extras: node_extras.clone(),
+            extras,
             ..Default::default()
-        }));
+        })
     }
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    root.buffers[buffer.value()].byte_length = USize64(bin.len() as u64);
 
-    let scene = root.push(json::Scene {
-        extensions: None,
-        extras: Default::default(),
-        name: None,
-        nodes,
-    });
-    root.scene = Some(scene);
-
-    let json_string = json::serialize::to_string(&root).map_err(|e| e.to_string())?;
-    let mut json_bytes = json_string.into_bytes();
-    while json_bytes.len() % 4 != 0 {
-        json_bytes.push(b' ');
+    /// The scene of `nodes`, packed as a GLB container.
+    fn finish(
+        mut self,
+        nodes: Vec<json::Index<json::Node>>,
+    ) -> std::result::Result<Vec<u8>, String> {
+        pad_to_4(&mut self.bin, 0);
+        self.root.buffers[self.buffer.value()].byte_length = USize64(self.bin.len() as u64);
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            nodes,
+        });
+        self.root.scene = Some(scene);
+        let mut json_bytes = json::serialize::to_string(&self.root)
+            .map_err(|e| e.to_string())?
+            .into_bytes();
+        pad_to_4(&mut json_bytes, b' ');
+        let glb = gltf::binary::Glb {
+            header: gltf::binary::Header {
+                magic: *b"glTF",
+                version: 2,
+                length: (12 + 8 + json_bytes.len() + 8 + self.bin.len()) as u32,
+            },
+            json: Cow::Owned(json_bytes),
+            bin: Some(Cow::Owned(self.bin)),
+        };
+        glb.to_vec().map_err(|e| e.to_string())
     }
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            length: (12 + 8 + json_bytes.len() + 8 + bin.len()) as u32,
-        },
-        json: Cow::Owned(json_bytes),
-        bin: Some(Cow::Owned(bin)),
+}
+
+/// GLB chunks are 4-byte aligned.
+fn pad_to_4(v: &mut Vec<u8>, fill: u8) {
+    while v.len() % 4 != 0 {
+        v.push(fill);
+    }
+}
+
+fn glb_bytes(
+    meshes: &[Mesh],
+    extras: Option<serde_json::Value>,
+) -> std::result::Result<Vec<u8>, String> {
+    let node_extras = match extras {
+        Some(v) => Some(serde_json::value::to_raw_value(&v).map_err(|e| e.to_string())?),
+        None => None,
     };
-    glb.to_vec().map_err(|e| e.to_string())
+    let mut b = GlbBuilder::new();
+    let nodes = meshes
+        .iter()
+        .map(|m| b.mesh_node(m, node_extras.clone()))
+        .collect();
+    b.finish(nodes)
 }
