@@ -17,7 +17,7 @@ use objnerf::sam::preprocess::encoder_input;
 use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
 use objnerf::util::atomic::write_bytes_atomic;
 use objnerf::{Error, Result};
-use sam_bench::{bench_images, chart_svg, RunInfo};
+use sam_bench::{bench_images, chart_svg, BenchArgs, RunInfo};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -26,18 +26,8 @@ const PY_BENCH: &str = include_str!("bench_sam.py");
 
 #[derive(Parser, Debug)]
 pub struct BenchOptions {
-    /// Images to encode (cycled run by run). Empty: one synthetic 800 x 600 image.
-    #[arg(long = "image")]
-    pub images: Vec<PathBuf>,
-    /// Timed runs per backend and model (at least 5); one untimed warm-up run comes first.
-    #[arg(long, default_value_t = 7)]
-    pub runs: usize,
-    /// 0 = all available cores; the same number goes to both backends.
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    /// Where the JSON and the chart go.
-    #[arg(long, default_value = "runs/bench")]
-    pub out_dir: PathBuf,
+    #[command(flatten)]
+    pub common: BenchArgs,
     /// The venv to use or create; default `<models dir>/venvs/bench-onnxruntime-<version>`.
     #[arg(long)]
     pub venv: Option<PathBuf>,
@@ -171,17 +161,17 @@ fn read_f32(path: &Path) -> Result<Vec<f32>> {
 }
 
 pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
-    let runs = opts.runs.max(5);
+    let runs = opts.common.runs.max(5);
     let lib = dir.require_library()?;
     let (enc, dec) = dir.require_sam()?;
     let so = SegmenterOptions {
-        threads: opts.threads,
+        threads: opts.common.threads,
         disk_cache: None,
     };
     let seg = Segmenter::from_files(&lib, &enc, &dec, &so)?;
     let threads = seg.threads();
 
-    let (images, names) = bench_images(&opts.images)?;
+    let (images, names) = bench_images(&opts.common.images)?;
 
     // Both backends get the same prepared tensors; the prompt is one click at the image centre.
     let work = tempfile::Builder::new()
@@ -278,8 +268,8 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     };
     let encoder_ratio = ours.encoder.median / python.encoder.median;
     let paired: Vec<f64> = oe.iter().zip(&pe).map(|(a, b)| a / b).collect();
-    let json = opts.out_dir.join("bench_sam.json");
-    let chart = opts.out_dir.join("bench_sam.svg");
+    let json = opts.common.out_dir.join("bench_sam.json");
+    let chart = opts.common.out_dir.join("bench_sam.svg");
     let report = BenchReport {
         run: RunInfo::new(threads, names, runs),
         encoder_ratio,

@@ -19,7 +19,7 @@ use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
 use objnerf::util::atomic::write_bytes_atomic;
 use objnerf::util::mem::peak_rss_mib;
 use objnerf::{Error, Result};
-use sam_bench::{bench_images, chart_svg, RunInfo};
+use sam_bench::{bench_images, chart_svg, BenchArgs, RunInfo};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -28,17 +28,8 @@ pub struct ConvertBenchOptions {
     /// The folder with the reference encoder.onnx and decoder.onnx.
     #[arg(long, default_value = "../shared/models/mobile_sam")]
     pub reference: PathBuf,
-    /// Images to encode (cycled run by run). Empty: one synthetic 800 x 600 image.
-    #[arg(long = "image")]
-    pub images: Vec<PathBuf>,
-    /// Timed runs per model (at least 5), after one untimed warm-up each.
-    #[arg(long, default_value_t = 7)]
-    pub runs: usize,
-    /// 0 = all available cores.
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    #[arg(long, default_value = "runs/bench")]
-    pub out_dir: PathBuf,
+    #[command(flatten)]
+    pub common: BenchArgs,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -75,7 +66,7 @@ pub struct ConvertBenchReport {
 }
 
 pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<ConvertBenchReport> {
-    let runs = opts.runs.max(5);
+    let runs = opts.common.runs.max(5);
     let lib = dir.require_library()?;
     let ckpt = dir.checkpoint();
     let work = tempfile::Builder::new()
@@ -91,7 +82,7 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
     let convert_seconds = t0.elapsed().as_secs_f64();
 
     let so = SegmenterOptions {
-        threads: opts.threads,
+        threads: opts.common.threads,
         disk_cache: None,
     };
     let (ref_enc, ref_dec) = (
@@ -101,7 +92,7 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
     let ours = Segmenter::from_files(&lib, &enc, &dec, &so)?;
     let theirs = Segmenter::from_files(&lib, &ref_enc, &ref_dec, &so)?;
 
-    let (images, names) = bench_images(&opts.images)?;
+    let (images, names) = bench_images(&opts.common.images)?;
     let inputs: Vec<Vec<f32>> = images.iter().map(|i| encoder_input(i).0).collect();
     // Both decoders get the reference's embedding and one click at the image centre.
     let mut embs = Vec::new();
@@ -155,8 +146,8 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
     let reference = times("torch.onnx export", &theirs, ref_enc, &re, &rd);
     let encoder_ratio = converted.encoder.median / reference.encoder.median;
     let paired: Vec<f64> = oe.iter().zip(&re).map(|(a, b)| a / b).collect();
-    let json = opts.out_dir.join("bench_sam_convert.json");
-    let chart = opts.out_dir.join("bench_sam_convert.svg");
+    let json = opts.common.out_dir.join("bench_sam_convert.json");
+    let chart = opts.common.out_dir.join("bench_sam_convert.svg");
     let report = ConvertBenchReport {
         run: RunInfo::new(ours.threads(), names, runs),
         convert_seconds,

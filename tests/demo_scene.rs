@@ -30,11 +30,10 @@ fn shared_scene() -> &'static Path {
     .1
 }
 
-/// Truth depth in metres from the EXR (the first channel).
+/// Truth depth in metres from the EXR.
 fn read_exr_depth(path: &Path) -> (u32, u32, Vec<f32>) {
-    let img = image::open(path).unwrap().to_rgb32f();
-    let (w, h) = img.dimensions();
-    (w, h, img.pixels().map(|p| p[0]).collect())
+    let d = objnerf::scene::io::read_depth(path, 1000.0).unwrap();
+    (d.width, d.height, d.metres)
 }
 
 #[test]

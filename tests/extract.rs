@@ -208,6 +208,26 @@ fn mesh_command_errors_are_clear() {
     assert!(ok, "{err}");
     assert_eq!(common::validate_gltf(&glb)["numErrors"], 0);
 
+    // A model that records no up direction (and no readable training scene) needs --up for
+    // .glb; a .ply keeps the capture's frame and needs none.
+    let (ok, err) = mesh_cmd(&[
+        model.as_os_str(),
+        "--out".as_ref(),
+        glb.as_os_str(),
+        "--iso".as_ref(),
+        "0.001".as_ref(),
+    ]);
+    assert!(!ok && err.contains("give --up"), "{err}");
+    let ply = dir.path().join("m.ply");
+    let (ok, err) = mesh_cmd(&[
+        model.as_os_str(),
+        "--out".as_ref(),
+        ply.as_os_str(),
+        "--iso".as_ref(),
+        "0.001".as_ref(),
+    ]);
+    assert!(ok && ply.is_file(), "{err}");
+
     // The output's folder is a regular file.
     std::fs::write(dir.path().join("file"), b"x").unwrap();
     let bad = dir.path().join("file/m.glb");
@@ -217,6 +237,8 @@ fn mesh_command_errors_are_clear() {
         bad.as_os_str(),
         "--iso".as_ref(),
         "0.001".as_ref(),
+        "--up".as_ref(),
+        "+z".as_ref(),
     ]);
     assert!(!ok);
     assert!(err.contains("file"), "{err}");
@@ -284,7 +306,7 @@ fn a_capture_with_images_in_sub_folders_extracts() {
         .arg(format!("{},{}", mug.click[0], mug.click[1]))
         .arg("--out")
         .arg(&run)
-        .args(["--steps", "60", "--time-budget", "100000", "--frames", "2"])
+        .args(["--steps", "600", "--time-budget", "100000", "--frames", "2"])
         .output()
         .unwrap();
     assert!(

@@ -9,6 +9,23 @@ use objnerf::scene::io::read_rgb;
 use objnerf::Result;
 use std::path::PathBuf;
 
+/// What both SAM benchmarks are told: the images, how many runs, threads, where results go.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Images to encode (cycled run by run). Empty: one synthetic 800 x 600 image.
+    #[arg(long = "image")]
+    pub images: Vec<PathBuf>,
+    /// Timed runs per side (at least 5), after one untimed warm-up each.
+    #[arg(long, default_value_t = 7)]
+    pub runs: usize,
+    /// 0 = all available cores; the same number goes to both sides.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Where the JSON and the chart go.
+    #[arg(long, default_value = "runs/bench")]
+    pub out_dir: PathBuf,
+}
+
 /// What a benchmark report says about its run: the command, machine, commit, runtime, threads,
 /// images and number of runs.
 #[derive(Clone, Debug, serde::Serialize)]

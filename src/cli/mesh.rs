@@ -79,7 +79,9 @@ impl MeshCmd {
             r.iso_alpha,
             r.pieces_removed
         );
-        println!("frame: {}", out.frame.why);
+        if let Some(frame) = &out.frame {
+            println!("frame: {}", frame.why);
+        }
         Ok(())
     }
 }

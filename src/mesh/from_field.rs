@@ -8,6 +8,7 @@
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
 use super::frame::GltfFrame;
+use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::model::{sigmoid, Field};
@@ -289,7 +290,8 @@ pub fn fill_cavities(values: &mut [f32], [nx, ny, nz]: [usize; 3], iso: f32) -> 
 pub struct MeshOutput {
     pub path: PathBuf,
     pub mesh: FieldMeshReport,
-    pub frame: GltfFrame,
+    /// The capture-to-glTF frame (None: a .ply of a model that records no up direction).
+    pub frame: Option<GltfFrame>,
     /// Bounds in the capture's world units (before the glTF frame change).
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
@@ -303,11 +305,16 @@ pub fn mesh_model(
     opts: &FieldMeshOptions,
     up: Option<DVec3>,
 ) -> Result<(Mesh, MeshOutput)> {
+    let format = MeshFormat::of(out)?;
     let model = crate::field::io::load_field(model_path)?;
-    let frame = GltfFrame::for_model(&model, up)?;
     let (mesh, report) = mesh_field(&model.field, name, opts)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
-    super::io::write_mesh(&mesh, &frame, out)?;
+    // PLY keeps the capture's frame: no up direction needed.
+    let frame = match format.needs_frame() {
+        true => Some(GltfFrame::for_model(&model, up)?),
+        false => GltfFrame::for_model(&model, up).ok(),
+    };
+    super::io::write_mesh(&mesh, frame.as_ref(), out)?;
     let (lo, hi) = mesh.bounds();
     Ok((
         mesh,

@@ -101,21 +101,58 @@ pub fn read_ply(path: &Path) -> Result<Mesh> {
     Ok(m)
 }
 
-/// Write `mesh` (in the capture's world units) to `path`, its format by extension.
-pub fn write_mesh(mesh: &Mesh, frame: &GltfFrame, path: &Path) -> Result<()> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
+/// The mesh formats objnerf writes, by file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// glTF binary, +Y up.
+    Glb,
+    /// Wavefront OBJ, +Y up.
+    Obj,
+    /// PLY, in the capture's own frame.
+    Ply,
+}
+
+impl MeshFormat {
+    /// The format of `path` by its extension, or an error naming the ones there are.
+    pub fn of(path: &Path) -> Result<MeshFormat> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "glb" => Ok(MeshFormat::Glb),
+            "obj" => Ok(MeshFormat::Obj),
+            "ply" => Ok(MeshFormat::Ply),
+            _ => Err(Error::invalid(format!(
+                "{}: unknown mesh format '{ext}' (use .glb, .obj or .ply)",
+                path.display()
+            ))),
+        }
+    }
+
+    /// Whether the mesh is turned into glTF's +Y-up frame (PLY keeps the capture's frame).
+    pub fn needs_frame(self) -> bool {
+        self != MeshFormat::Ply
+    }
+}
+
+/// Write `mesh` (in the capture's world units) to `path`, its format by extension; `frame` turns
+/// it to +Y up for .glb and .obj (it may be `None` for .ply only).
+pub fn write_mesh(mesh: &Mesh, frame: Option<&GltfFrame>, path: &Path) -> Result<()> {
+    let format = MeshFormat::of(path)?;
+    if format == MeshFormat::Ply {
+        return write_ply(mesh, path);
+    }
+    let frame = frame.ok_or_else(|| {
+        Error::invalid(format!(
+            "{}: a .glb or .obj mesh needs the capture's up direction",
+            path.display()
+        ))
+    })?;
     let mut turned = mesh.clone();
     turned.transform(frame.matrix());
-    match ext.as_str() {
-        "glb" => super::gltf::write_glb(&turned, path, Some(frame.extras())),
-        "obj" => write_obj(&turned, path),
-        "ply" => write_ply(mesh, path),
-        _ => Err(Error::invalid(format!(
-            "{}: unknown mesh format '{ext}' (use .glb, .obj or .ply)",
-            path.display()
-        ))),
+    match format {
+        MeshFormat::Glb => super::gltf::write_glb(&turned, path, Some(frame.extras())),
+        _ => write_obj(&turned, path),
     }
 }

@@ -247,8 +247,8 @@ fn extract_object(
     let t = Instant::now();
     let (mesh, mesh_report) = mesh_field(field, &obj.name, &opts.mesh)
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
-    write_mesh(&mesh, frame, &dir.join("mesh.glb"))?;
-    write_mesh(&mesh, frame, &dir.join("mesh.ply"))?;
+    write_mesh(&mesh, Some(frame), &dir.join("mesh.glb"))?;
+    write_mesh(&mesh, Some(frame), &dir.join("mesh.ply"))?;
     let mesh_seconds = t.elapsed().as_secs_f64();
 
     let t = Instant::now();

@@ -326,13 +326,10 @@ mod tests {
         let p = dir.path().join("d.exr");
         write_depth_exr(&p, &sample()).unwrap();
         assert_eq!(read_depth(&p, 1000.0).unwrap(), sample());
-        // Byte-stable, and readable by a second decoder (the image crate's).
+        // Byte-stable: the same depth gives the same file.
         let bytes = std::fs::read(&p).unwrap();
         write_depth_exr(&p, &sample()).unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), bytes);
-        let img = image::open(&p).unwrap().to_rgb32f();
-        let back: Vec<f32> = img.pixels().map(|px| px[0]).collect();
-        assert_eq!(back, sample().metres);
         let q = dir.path().join("d8.png");
         GrayImage::new(2, 2).save(&q).unwrap();
         assert!(read_depth(&q, 1000.0)

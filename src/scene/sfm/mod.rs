@@ -1,0 +1,246 @@
+//! `objnerf sfm`: give a scene 2D-3D feature tracks with the real COLMAP (Debian package
+//! `colmap`, CPU). Two modes:
+//! - **full reconstruction** from an images folder (features, exhaustive matching, mapper), and
+//! - **triangulation with known poses** for a posed scene without tracks (e.g. NeRF-synthetic),
+//!   which keeps the scene's cameras and world frame and only adds points and tracks.
+//!
+//! Images may be downscaled before feature extraction; the model is scaled back to the full image
+//! size afterwards, so its intrinsics and 2D features always match the original images.
+
+mod colmap_run;
+mod reconstruct;
+mod triangulate;
+
+pub use colmap_run::colmap_program;
+pub use reconstruct::reconstruct;
+pub use triangulate::{pairs_from_poses, triangulate};
+
+use crate::error::{Error, Result};
+use crate::scene::formats::colmap::{self, ModelFormat};
+use crate::scene::io::{is_image, read_image};
+use crate::scene::{Scene, SourceFormat};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct SfmOptions {
+    /// Downscale images by this factor before feature extraction (1 = full size).
+    pub downscale: u32,
+    /// COLMAP camera model for full reconstruction.
+    pub camera_model: String,
+    /// Most SIFT features per image.
+    pub max_features: u32,
+    /// "auto" (posed scenes: pairs chosen from the poses; otherwise exhaustive), "exhaustive",
+    /// "sequential" or "pairs" (posed scenes only).
+    pub matcher: String,
+    /// With pose-chosen pairs: match each image with this many neighbours.
+    pub pair_neighbours: usize,
+    /// COLMAP's threads (-1 = all cores).
+    pub threads: i32,
+    /// Replace the output folder if it exists.
+    pub overwrite: bool,
+}
+
+impl Default for SfmOptions {
+    fn default() -> Self {
+        SfmOptions {
+            downscale: 1,
+            camera_model: "SIMPLE_RADIAL".into(),
+            max_features: 8192,
+            matcher: "auto".into(),
+            pair_neighbours: 12,
+            threads: -1,
+            overwrite: false,
+        }
+    }
+}
+
+/// What a run did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SfmReport {
+    pub mode: &'static str,
+    pub num_images: usize,
+    pub num_registered: usize,
+    pub num_points: usize,
+    pub mean_track_length: f64,
+    pub seconds: f64,
+    pub model_dir: PathBuf,
+    /// Image pairs matched when they were chosen from the poses (triangulation).
+    pub matched_pairs: Option<usize>,
+}
+
+/// What `objnerf sfm` was given.
+pub enum SfmInput {
+    /// A folder of images without poses: full reconstruction.
+    Images(PathBuf),
+    /// A posed scene: triangulation with its poses.
+    Posed(Scene),
+}
+
+fn has_images(dir: &Path) -> bool {
+    std::fs::read_dir(dir)
+        .map(|d| d.flatten().any(|e| is_image(&e.path())))
+        .unwrap_or(false)
+}
+
+/// A posed scene if `input` reads as one (and `force_reconstruct` is off), else a folder of images.
+pub fn resolve_input(input: &Path, force_reconstruct: bool) -> Result<SfmInput> {
+    match Scene::load(input) {
+        Ok(scene) if !force_reconstruct => Ok(SfmInput::Posed(scene)),
+        other => {
+            for dir in [input.to_path_buf(), input.join("images")] {
+                if dir.is_dir() && has_images(&dir) {
+                    return Ok(SfmInput::Images(dir));
+                }
+            }
+            match other {
+                Err(e) => Err(e),
+                Ok(_) => Err(Error::format(input, "no images folder to reconstruct from")),
+            }
+        }
+    }
+}
+
+/// Fail early (before minutes of COLMAP) when the output folder would be refused at the end.
+fn check_out(out: &Path, opts: &SfmOptions) -> Result<()> {
+    drop(crate::util::AtomicDir::new(out, opts.overwrite)?);
+    Ok(())
+}
+
+/// Prepare `work/images/NNNNN.ext`: symlinks to the originals, or downscaled copies. Sorted names
+/// make COLMAP's image ids follow the scene's order.
+fn stage_images(paths: &[PathBuf], work: &Path, downscale: u32) -> Result<Vec<String>> {
+    let dir = work.join("images");
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    let mut names = Vec::with_capacity(paths.len());
+    for (i, p) in paths.iter().enumerate() {
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_lowercase())
+            .unwrap_or_else(|| "png".into());
+        let name = if downscale > 1 {
+            format!("{i:05}.png")
+        } else {
+            format!("{i:05}.{ext}")
+        };
+        let dst = dir.join(&name);
+        if downscale > 1 {
+            let img = read_image(p)?;
+            let (w, h) = (img.width(), img.height());
+            let (nw, nh) = (
+                ((w as f64 / downscale as f64).round() as u32).max(1),
+                ((h as f64 / downscale as f64).round() as u32).max(1),
+            );
+            let small = img.resize_exact(nw, nh, image::imageops::FilterType::Triangle);
+            small.save(&dst).map_err(|e| Error::image(&dst, e))?;
+        } else {
+            let abs = std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?;
+            std::os::unix::fs::symlink(&abs, &dst).map_err(|e| Error::io(&dst, e))?;
+        }
+        names.push(name);
+    }
+    Ok(names)
+}
+
+/// The folder all the scene's images sit under (their longest common ancestor).
+fn image_root(scene: &Scene) -> Result<PathBuf> {
+    let mut root: Option<PathBuf> = None;
+    for im in &scene.images {
+        let abs = std::fs::canonicalize(&im.path).map_err(|e| Error::io(&im.path, e))?;
+        let parent = abs.parent().unwrap_or(Path::new("/")).to_path_buf();
+        root = Some(match root {
+            None => parent,
+            Some(r) => {
+                let mut r = r;
+                while !parent.starts_with(&r) {
+                    r = r.parent().unwrap_or(Path::new("/")).to_path_buf();
+                }
+                r
+            }
+        });
+    }
+    root.ok_or_else(|| Error::format(&scene.source, "the scene has no images"))
+}
+
+fn relative_name(path: &Path, root: &Path) -> String {
+    let abs = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    abs.strip_prefix(root)
+        .unwrap_or(&abs)
+        .to_string_lossy()
+        .to_string()
+}
+
+/// Give the model's images their original names and paths, and scale cameras and features
+/// from the staged (downscaled) size back to the original image size.
+fn rename_and_rescale(
+    model: &mut Scene,
+    staged: &[String],
+    originals: &[String],
+    paths: &[PathBuf],
+) -> Result<()> {
+    let mut scale_for_camera: Vec<Option<(u32, u32)>> = vec![None; model.cameras.len()];
+    for im in &mut model.images {
+        let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| {
+            Error::external(
+                "colmap",
+                format!("unknown image '{}' in its output", im.name),
+            )
+        })?;
+        im.name = originals[k].clone();
+        im.path = paths[k].clone();
+        let (w, h) = image::image_dimensions(&paths[k]).map_err(|e| Error::image(&paths[k], e))?;
+        let cam = &model.cameras[im.camera].camera;
+        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
+        for f in &mut im.features {
+            f.xy.x *= sx;
+            f.xy.y *= sy;
+        }
+        scale_for_camera[im.camera] = Some((w, h));
+    }
+    for (c, size) in model.cameras.iter_mut().zip(scale_for_camera) {
+        if let Some((w, h)) = size {
+            c.camera = c.camera.resized(w, h);
+        }
+    }
+    Ok(())
+}
+
+fn finish(
+    mut model: Scene,
+    out: &Path,
+    images_root: &Path,
+    mode: &'static str,
+    num_images: usize,
+    start: Instant,
+    work: tempfile::TempDir,
+) -> Result<SfmReport> {
+    // Checked empty (or --overwrite) before COLMAP ran.
+    let dest = crate::util::AtomicDir::new(out, true)?;
+    let model_dir = dest.path().join("sparse/0");
+    colmap::write_model(&model, &model_dir, ModelFormat::Binary)?;
+    let abs_root = std::fs::canonicalize(images_root).map_err(|e| Error::io(images_root, e))?;
+    std::os::unix::fs::symlink(&abs_root, dest.path().join("images"))
+        .map_err(|e| Error::io(dest.path().join("images"), e))?;
+    let _ = std::fs::copy(
+        work.path().join("colmap.log"),
+        dest.path().join("colmap.log"),
+    );
+    let out = dest.commit()?;
+    model.source = out.join("sparse/0");
+    model.format = SourceFormat::ColmapBinary;
+    let obs: usize = model.points.iter().map(|p| p.track.len()).sum();
+    Ok(SfmReport {
+        mode,
+        num_images,
+        num_registered: model.images.len(),
+        num_points: model.points.len(),
+        mean_track_length: if model.points.is_empty() {
+            0.0
+        } else {
+            obs as f64 / model.points.len() as f64
+        },
+        seconds: start.elapsed().as_secs_f64(),
+        model_dir: out.join("sparse/0"),
+        matched_pairs: None,
+    })
+}
