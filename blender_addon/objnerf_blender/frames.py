@@ -96,15 +96,19 @@ def apply_intrinsics(cam_data, fx, fy, cx, cy, w, h):
     cam_data.sensor_fit = "HORIZONTAL"
     cam_data.sensor_width = SENSOR_WIDTH_MM
     cam_data.lens = fx / w * SENSOR_WIDTH_MM
-    # Shift is in units of the fitted dimension (the width): positive x moves the image window
-    # right, positive y moves it up. A principal point right of centre means the window sits
-    # left of the optical axis.
-    cam_data.shift_x = (0.5 * w - cx) / w
-    cam_data.shift_y = (cy - 0.5 * h) / w
     # Wider pixels (aspect x > y) mean fewer pixels per unit across: fy / fx = aspect_x / aspect_y.
     if abs(fy - fx) <= 1e-9 * fx:
-        return (1.0, 1.0)
-    return (fy / fx, 1.0) if fy > fx else (1.0, fx / fy)
+        aspect = (1.0, 1.0)
+    else:
+        aspect = (fy / fx, 1.0) if fy > fx else (1.0, fx / fy)
+    # Shift is in units of the fitted dimension (the width): positive x moves the image window
+    # right, positive y moves it up. A principal point right of centre means the window sits
+    # left of the optical axis. Blender's view plane measures y in x's units, so a pixel row is
+    # aspect_y / aspect_x of them high.
+    ycor = aspect[1] / aspect[0]
+    cam_data.shift_x = (0.5 * w - cx) / w
+    cam_data.shift_y = (cy - 0.5 * h) * ycor / w
+    return aspect
 
 
 def projection_intrinsics(proj, w, h):

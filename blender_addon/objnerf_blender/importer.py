@@ -40,7 +40,8 @@ def import_scene(context, scene_path, name=None, capture_to_blender=None, camera
     tf = formats.read_transforms(tf_path)
     if capture_to_blender is None:
         capture_to_blender = frames.capture_to_blender_from_cameras([f["c2w"] for f in tf["frames"]])
-    name = name or os.path.basename(os.path.normpath(scene_path))
+    if name is None:  # the scene's folder name, also for a transforms.json given as a file
+        name = os.path.basename(os.path.dirname(scene_path) if os.path.isfile(scene_path) else os.path.normpath(scene_path))
     root, subs = build.new_root(context, name, capture_to_blender)
     root.objnerf.scene_path = os.path.abspath(scene_path)
     notes = []
