@@ -11,9 +11,9 @@ objects. Each view is rendered twice:
   Z pass, from the same render, is the depth. Both are written by a temporary compositor File
   Output node as float EXR and decoded here.
 
-Camera matrices are `matrix_world` without scale (OpenGL axes, as nerfstudio's), intrinsics
-come from Blender's own projection matrix (`frames.projection_intrinsics`), so lens, sensor fit,
-shift and resolution all land in `fl_x, fl_y, cx, cy, w, h`.
+Camera matrices are `matrix_world` without scale (OpenGL axes, as nerfstudio's); intrinsics are
+computed from lens, sensor size and fit, shift, pixel aspect and resolution as Blender's view plane
+is (`frames.camera_intrinsics`, checked against Blender's projection matrix in the tests).
 """
 
 import glob
@@ -148,7 +148,8 @@ def _truth_nodes(scene, tmp):
     out.base_path = tmp
     out.format.file_format, out.format.color_depth, out.format.color_mode = "OPEN_EXR", "32", "RGBA"
     out.file_slots[0].path = "id_"
-    slot = out.file_slots.new("depth_")
+    out.file_slots.new("depth_")  # returns the node's new input socket, not the slot
+    slot = out.file_slots[1]
     slot.use_node_format = False
     slot.format.file_format, slot.format.color_depth, slot.format.color_mode = "OPEN_EXR", "32", "BW"
     hit = nt.nodes.new("CompositorNodeMath")
@@ -221,7 +222,6 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
             if nd.bl_idname == "CompositorNodeOutputFile":
                 saved.set(nd, "mute", True)
         nodes = _truth_nodes(scene, tmp)
-        depsgraph = context.evaluated_depsgraph_get()
         for i, cam in enumerate(cams):
             scene.camera = cam
             stem = f"frame_{i:05d}"
@@ -239,9 +239,7 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
                 formats.write_png(os.path.join(out_dir, "masks", names[o.name], stem + ".png"),
                                   np.where(codes == k + 1, 255, 0).astype(np.uint8))
             depth_rel = _write_depth(out_dir, stem, depth_exr, depth_format)
-            cam_eval = cam.evaluated_get(depsgraph)
-            proj = cam_eval.calc_matrix_camera(depsgraph, x=w, y=h, scale_x=pax, scale_y=pay)
-            fx, fy, cx, cy = frames.projection_intrinsics(proj, w, h)
+            fx, fy, cx, cy = frames.camera_intrinsics(cam.data, w, h, (pax, pay))
             c2w = frames.rigid_part(cam.matrix_world)
             frames_out.append({
                 "file_path": f"images/{stem}.png",

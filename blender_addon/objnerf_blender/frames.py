@@ -133,22 +133,35 @@ def render_size(scene):
     return int(r.resolution_x * pct), int(r.resolution_y * pct)
 
 
-def vertical_fov_degrees(cam_data, w, h, pixel_aspect=(1.0, 1.0)):
-    """The vertical field of view of a Blender perspective camera rendering w x h pixels, from
-    its lens, sensor size and sensor fit (AUTO fits the sensor width to the larger side)."""
+def camera_intrinsics(cam_data, w, h, pixel_aspect=(1.0, 1.0)):
+    """Pinhole intrinsics (fx, fy, cx, cy; pixels, OpenCV corner convention) of a Blender
+    perspective camera rendering w x h pixels, in double precision, from its lens, sensor size
+    and fit (AUTO fits the sensor width to the larger side), shift and the pixel aspect, as
+    Blender's view plane is computed (`BKE_camera_params_compute_viewplane`)."""
     if cam_data.type != "PERSP":
         raise ValueError(f"camera '{cam_data.name}' is {cam_data.type}, not perspective")
-    aw, ah = w * pixel_aspect[0], h * pixel_aspect[1]
+    ax, ay = pixel_aspect
+    ycor = ay / ax
     fit = cam_data.sensor_fit
     if fit == "AUTO":
-        fit = "HORIZONTAL" if aw >= ah else "VERTICAL"
+        fit = "HORIZONTAL" if w * ax >= h * ay else "VERTICAL"
         sensor = cam_data.sensor_width
     else:
         sensor = cam_data.sensor_width if fit == "HORIZONTAL" else cam_data.sensor_height
-    half = sensor / 2.0 / cam_data.lens
-    if fit == "HORIZONTAL":
-        half = half * ah / aw
-    return math.degrees(2.0 * math.atan(half))
+    # The view plane spans viewfac x-units over the fitted side; a pixel is 1 x-unit wide and
+    # ycor x-units high.
+    viewfac = w if fit == "HORIZONTAL" else ycor * h
+    fx = cam_data.lens / sensor * viewfac
+    fy = fx / ycor
+    cx = 0.5 * w - cam_data.shift_x * viewfac
+    cy = 0.5 * h + cam_data.shift_y * viewfac / ycor
+    return fx, fy, cx, cy
+
+
+def vertical_fov_degrees(cam_data, w, h, pixel_aspect=(1.0, 1.0)):
+    """The vertical field of view of a Blender perspective camera rendering w x h pixels."""
+    fy = camera_intrinsics(cam_data, w, h, pixel_aspect)[1]
+    return math.degrees(2.0 * math.atan(0.5 * h / fy))
 
 
 def quaternion_wxyz(q):

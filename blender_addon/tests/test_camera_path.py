@@ -79,16 +79,26 @@ def test_camera_path_reads_back_to_blenders_cameras(prefs, demo_run, tmp_path):
     assert worst_m < 1e-6 and worst_k < 1e-6 and worst_px < 1e-3
 
 
-@pytest.mark.parametrize("fit,size", [("AUTO", (320, 240)), ("AUTO", (240, 320)), ("HORIZONTAL", (240, 320)),
-                                      ("VERTICAL", (320, 240)), ("VERTICAL", (200, 300))])
-def test_vertical_fov_matches_blenders_projection(addon, fit, size):
+@pytest.mark.parametrize("fit,size,aspect", [
+    ("AUTO", (320, 240), (1, 1)), ("AUTO", (240, 320), (1, 1)), ("HORIZONTAL", (240, 320), (1, 1)),
+    ("VERTICAL", (320, 240), (1, 1)), ("VERTICAL", (200, 300), (1, 1)), ("AUTO", (320, 240), (1.0, 1.3)),
+    ("AUTO", (240, 320), (1.4, 1.0)), ("HORIZONTAL", (320, 240), (1.0, 1.2)), ("VERTICAL", (320, 240), (1.25, 1.0))])
+def test_intrinsics_match_blenders_projection(addon, fit, size, aspect):
+    """frames.camera_intrinsics (double precision, from the camera's settings) against Blender's own
+    projection matrix, with lens shift, every sensor fit and non-square pixels."""
     data = bpy.data.cameras.new("c")
     data.sensor_fit, data.lens, data.sensor_width, data.sensor_height = fit, 28.0, 36.0, 20.0
+    data.shift_x, data.shift_y = 0.04, -0.07
     cam = bpy.data.objects.new("c", data)
     bpy.context.scene.collection.objects.link(cam)
     w, h = size
-    fy = blender_intrinsics(cam, w, h)[1]
-    assert frames.vertical_fov_degrees(data, w, h) == pytest.approx(math.degrees(2 * math.atan(h / 2 / fy)), rel=1e-6)  # float32 projection
+    dg = bpy.context.evaluated_depsgraph_get()
+    proj = cam.evaluated_get(dg).calc_matrix_camera(dg, x=w, y=h, scale_x=aspect[0], scale_y=aspect[1])
+    want = frames.projection_intrinsics(proj, w, h)
+    got = frames.camera_intrinsics(data, w, h, aspect)
+    assert np.allclose(got, want, rtol=1e-6), (got, want)  # Blender's matrix is single precision
+    if aspect == (1, 1):
+        assert frames.vertical_fov_degrees(data, w, h) == pytest.approx(math.degrees(2 * math.atan(h / 2 / want[1])), rel=1e-6)
 
 
 def test_intrinsics_round_trip_through_a_blender_camera(addon):
