@@ -157,9 +157,12 @@ def _points_group():
     return ng
 
 
-def add_points(name, path, root, collection, radius):
-    """A point cloud from a PLY file (capture frame), drawn as points of `radius`."""
+def add_points(name, path, root, collection, radius, transform=None):
+    """A point cloud from a PLY file (capture frame, or taken there by the 4x4 `transform`),
+    drawn as points of `radius`."""
     xyz, rgb, _ = formats.read_ply(path)
+    if transform is not None:
+        xyz = xyz @ transform[:3, :3].T + transform[:3, 3]
     obj = bpy.data.objects.new(name, mesh_from_arrays(name, xyz, rgb))
     obj.objnerf.role = "POINTS"
     obj["objnerf_ply"] = path

@@ -77,12 +77,14 @@ def transforms_for_scene(scene, get_binary, models_dir=""):
     A transforms.json (or a folder holding one) is used as is; any other format (COLMAP, LLFF,
     RGB-D) goes through `objnerf export nerfstudio SCENE --out TMP` (issue 15), which owns the
     conversions. This is the only function that changes when that command lands.
-    `get_binary()` is called only when the binary is needed.
+    `get_binary()` is called only when the binary is needed. Returns (path, exported): an
+    exported file's `applied_transform`, if any, is undone by the reader (the run's meshes are in
+    the original format's frame).
     """
     if os.path.isfile(scene) and scene.endswith(".json"):
-        return scene
+        return scene, False
     if os.path.isfile(os.path.join(scene, "transforms.json")):
-        return os.path.join(scene, "transforms.json")
+        return os.path.join(scene, "transforms.json"), False
     if not os.path.exists(scene):
         raise ObjnerfError(f"scene {scene} does not exist")
     binary = get_binary()
@@ -96,7 +98,7 @@ def transforms_for_scene(scene, get_binary, models_dir=""):
     path = os.path.join(out, "transforms.json")
     if not os.path.isfile(path):
         raise ObjnerfError(f"'objnerf export nerfstudio {scene}' wrote no transforms.json in {out}")
-    return path
+    return path, True
 
 
 class BackgroundJob:

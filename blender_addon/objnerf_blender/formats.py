@@ -156,17 +156,31 @@ def read_json(path, what="file"):
 _DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 
 
-def read_transforms(path):
+def read_transforms(path, undo_applied_transform=False):
     """Read a nerfstudio (or NeRF-synthetic) transforms.json into plain dicts.
 
     Returns {"frames": [{"name", "image", "c2w" (4x4 lists, OpenGL), "fx", "fy", "cx", "cy",
-    "w", "h", "camera_model", "distortion" {k1..p2 non-zero}}], "ply": absolute path or None}.
+    "w", "h", "camera_model", "distortion" {k1..p2 non-zero}}], "ply": absolute path or None,
+    "ply_transform": 4x4 to apply to the PLY's points, or None}.
     Intrinsics sit at the top level or per frame (a frame's values win), as objnerf reads them.
+
+    objnerf reads `transform_matrix` as is (its capture frame is the file's frame), so by default
+    so does this. A transforms.json that `objnerf export nerfstudio` wrote for another format may
+    carry an `applied_transform` A (original world -> file); `undo_applied_transform` maps poses
+    and points back to the original capture frame with A^-1.
     """
     tf = read_json(path, "transforms file")
     base = os.path.dirname(os.path.abspath(path))
     if not isinstance(tf, dict) or not isinstance(tf.get("frames"), list) or not tf["frames"]:
         raise ObjnerfError(f"{path}: no frames")
+    undo = None
+    if undo_applied_transform and tf.get("applied_transform") is not None:
+        a = np.array(tf["applied_transform"], dtype=np.float64)
+        if a.shape == (3, 4):
+            a = np.vstack([a, [0, 0, 0, 1]])
+        if a.shape != (4, 4) or not np.all(np.isfinite(a)):
+            raise ObjnerfError(f"{path}: applied_transform must be a finite 3x4 or 4x4 matrix")
+        undo = np.linalg.inv(a)
     frames = []
     for i, fr in enumerate(tf["frames"]):
         k = {key: fr.get(key, tf.get(key)) for key in (
@@ -179,6 +193,8 @@ def read_transforms(path):
         c2w = [list(map(float, row)) for row in m[:3]] + [[0.0, 0.0, 0.0, 1.0]]
         if any(len(r) != 4 or not all(math.isfinite(v) for v in r) for r in c2w):
             raise ObjnerfError(f"{path}: frame {i} ('{fp}') has a malformed transform_matrix")
+        if undo is not None:
+            c2w = (undo @ np.array(c2w)).tolist()
         image = os.path.normpath(os.path.join(base, fp))
         if not os.path.splitext(image)[1] and os.path.exists(image + ".png"):
             image += ".png"  # NeRF-synthetic leaves the extension out
@@ -205,7 +221,8 @@ def read_transforms(path):
             "distortion": {d: float(k[d]) for d in _DISTORTION_KEYS if k[d]},
         })
     ply = tf.get("ply_file_path")
-    return {"frames": frames, "ply": os.path.normpath(os.path.join(base, ply)) if ply else None}
+    return {"frames": frames, "ply": os.path.normpath(os.path.join(base, ply)) if ply else None,
+            "ply_transform": undo}
 
 
 def _image_size(image, tf_path):

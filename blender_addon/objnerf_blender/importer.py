@@ -36,8 +36,8 @@ def _extent(tf):
 def import_scene(context, scene_path, name=None, capture_to_blender=None, cameras=True, points=True,
                  backgrounds=True):
     """Cameras and sparse points of a scene under a new root; returns (root, collections, tf, notes)."""
-    tf_path = cli.transforms_for_scene(scene_path, lambda: prefs.binary(context), prefs.models_dir(context))
-    tf = formats.read_transforms(tf_path)
+    tf_path, exported = cli.transforms_for_scene(scene_path, lambda: prefs.binary(context), prefs.models_dir(context))
+    tf = formats.read_transforms(tf_path, undo_applied_transform=exported)
     if capture_to_blender is None:
         capture_to_blender = frames.capture_to_blender_from_cameras([f["c2w"] for f in tf["frames"]])
     if name is None:  # the scene's folder name, also for a transforms.json given as a file
@@ -53,7 +53,8 @@ def import_scene(context, scene_path, name=None, capture_to_blender=None, camera
     if points and tf["ply"]:
         if not os.path.isfile(tf["ply"]):
             raise ObjnerfError(f"{tf_path}: ply_file_path {tf['ply']} is missing")
-        build.add_points(f"{name} sparse", tf["ply"], root, subs["points"], radius=_extent(tf) * 2e-3)
+        build.add_points(f"{name} sparse", tf["ply"], root, subs["points"], radius=_extent(tf) * 2e-3,
+                         transform=tf["ply_transform"])
         notes.append("sparse points")
     return root, subs, tf, notes
 

@@ -17,6 +17,7 @@ by root scale / metres_per_unit and capped at 1e9 so that where Blender drew not
 
 import glob
 import os
+import time
 
 import bpy
 from bpy.props import StringProperty
@@ -167,6 +168,32 @@ def _status(context, text):
         ws.status_text_set(text)
 
 
+class RenderSession:
+    """One render-edit run driven by events: what the modal operator does on each timer tick or
+    key, without Blender's event loop, so that it can be driven (and tested) from scripts too.
+    `tick` returns "RUNNING", "FINISHED" (frames loaded back), "CANCELLED" or "PASS" (not ours)."""
+
+    def __init__(self, context, root, directory):
+        self.root = root
+        self.job, self.out = start_job(context, root, directory)
+        self.frames = 0
+
+    def tick(self, context, event_type):
+        if event_type == "ESC":
+            self.job.cancel()
+            return "CANCELLED"
+        if event_type != "TIMER":
+            return "PASS"
+        done = self.job.progress()
+        context.window_manager.progress_update(int(done * 100))
+        _status(context, f"objnerf render-edit: {round(done * self.job.total)}/{self.job.total} frames (Esc to cancel)")
+        if self.job.poll() is None:
+            return "RUNNING"
+        self.job.finish()  # raises with the render's stderr when it failed
+        self.frames = load_render(context, self.root, self.out)
+        return "FINISHED"
+
+
 class OBJNERF_OT_render_edit(bpy.types.Operator):
     """Render the edit along the active camera's animation with objnerf render-edit, then
     composite the frames with Blender's own objects (Esc cancels)"""
@@ -177,28 +204,27 @@ class OBJNERF_OT_render_edit(bpy.types.Operator):
     directory: StringProperty(name="Folder", subtype="DIR_PATH", default="//objnerf_render/",
                               description="Where edit.json, camera_path.json and render/ go")
 
-    _job = None
+    _session = None
     _timer = None
-    _out = None
 
-    def _finish(self, context):
-        self._job.finish()  # raises with the render's stderr when it failed
-        n = load_render(context, props.active_root(context), self._out)
-        self.report({"INFO"}, f"rendered {n} frames into {self._out}; composited with the Z pass")
+    def _done(self):
+        s = self._session
+        self.report({"INFO"}, f"rendered {s.frames} frames into {s.out}; composited with the Z pass")
         return {"FINISHED"}
 
     @reports_errors
     def execute(self, context):
         """Blocking (scripts, background mode: no timer events there)."""
-        self._job, self._out = start_job(context, props.active_root(context), self.directory)
-        self._job.wait()
-        return self._finish(context)
+        self._session = RenderSession(context, props.active_root(context), self.directory)
+        while self._session.tick(context, "TIMER") == "RUNNING":
+            time.sleep(0.2)
+        return self._done()
 
     @reports_errors
     def invoke(self, context, event):
         if context.window is None:
             return self.execute(context)
-        self._job, self._out = start_job(context, props.active_root(context), self.directory)
+        self._session = RenderSession(context, props.active_root(context), self.directory)
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.25, window=context.window)
         wm.modal_handler_add(self)
@@ -216,25 +242,27 @@ class OBJNERF_OT_render_edit(bpy.types.Operator):
 
     @reports_errors
     def modal(self, context, event):
-        if event.type == "ESC":
-            self._job.cancel()
+        try:
+            state = self._session.tick(context, event.type)
+        except BaseException:
+            # Whatever went wrong, the timer, the progress and the subprocess go with it.
+            self._session.job.cancel()
             self._stop(context)
-            self.report({"WARNING"}, "objnerf render-edit cancelled")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
+            raise
+        if state == "PASS":
             return {"PASS_THROUGH"}
-        done = self._job.progress()
-        context.window_manager.progress_update(int(done * 100))
-        _status(context, f"objnerf render-edit: {done * self._job.total:.0f}/{self._job.total} frames (Esc to cancel)")
-        if self._job.poll() is None:
+        if state == "RUNNING":
             return {"RUNNING_MODAL"}
         self._stop(context)
-        return self._finish(context)
+        if state == "CANCELLED":
+            self.report({"WARNING"}, "objnerf render-edit cancelled")
+            return {"CANCELLED"}
+        return self._done()
 
     def cancel(self, context):
         """Blender calls this when the operator is stopped from outside (file load, quit)."""
-        if self._job is not None:
-            self._job.cancel()
+        if self._session is not None:
+            self._session.job.cancel()
         self._stop(context)
 
 

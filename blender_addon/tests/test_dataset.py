@@ -3,7 +3,6 @@ the known geometry through the exported cameras), objnerf reads it, and objnerf'
 segmentation (after `objnerf sfm`) matches the Blender mask pass."""
 
 import json
-import math
 import os
 import subprocess
 
@@ -147,3 +146,29 @@ def test_objnerf_reads_and_segments_the_dataset(dataset, objnerf_bin, tmp_path):
     print(f"objnerf segment, one click at ({x}, {y}) in frame_00000: mIoU {np.mean(ious):.3f} over 24 views "
           f"against the Blender mask pass (min {min(ious):.3f})")
     assert np.mean(ious) >= 0.9
+
+
+def test_selected_cameras_with_their_own_lenses(addon, tmp_path):
+    """Selected cameras (two lenses: intrinsics per frame), PNG depth in millimetres."""
+    build_scene()
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 64, 48
+    cams = []
+    for i, (lens, loc) in enumerate(((30.0, (0, -3, 1.5)), (50.0, (3, 0, 1.5)))):
+        cam = bpy.data.objects.new(f"sel_{i}", bpy.data.cameras.new(f"sel_{i}"))
+        cam.data.lens = lens
+        scene.collection.objects.link(cam)
+        cam.location = loc
+        cam.rotation_euler = (-cam.location).to_track_quat("-Z", "Y").to_euler()
+        cam.select_set(True)
+        cams.append(cam)
+    out = tmp_path / "ds"
+    assert bpy.ops.objnerf.export_dataset(directory=str(out), cameras="SELECTED", depth_format="PNG") == {"FINISHED"}
+    tf = json.loads((out / "transforms.json").read_text())
+    assert len(tf["frames"]) == 2 and "fl_x" not in tf
+    assert [f["fl_x"] for f in tf["frames"]] == pytest.approx([30 / 36 * 64, 50 / 36 * 64])
+    assert tf["frames"][0]["depth_file_path"] == "depth/frame_00000.png"
+    depth_mm = read_gray(str(out / "depth" / "frame_00000.png")) * 65535
+    assert 1000 < depth_mm.max() < 5000  # millimetres, a few metres away
+    with pytest.raises(RuntimeError, match="choose an output folder"):
+        bpy.ops.objnerf.export_dataset(directory="", cameras="SELECTED")

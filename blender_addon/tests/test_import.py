@@ -1,6 +1,7 @@
 """Importing the demo `extract` run: cameras that project like objnerf's, the proxy on its points,
 and the bad cases (missing folder, missing files, a scene format that needs the exporter)."""
 
+import json
 import os
 import shutil
 
@@ -163,3 +164,19 @@ def _read(path):
     img.pixels.foreach_get(a)
     bpy.data.images.remove(img)
     return a.reshape(h, w, 4)[::-1]
+
+
+def test_distortion_is_noted_not_faked(addon, demo_run, tmp_path):
+    tf = json.load(open(os.path.join(demo_run, "scene", "transforms.json")))
+    tf.update(camera_model="OPENCV", k1=-0.05, p2=0.001)
+    tf.pop("ply_file_path")
+    for fr in tf["frames"]:
+        fr["file_path"] = os.path.join(demo_run, "scene", fr["file_path"])
+        fr.pop("depth_file_path", None)
+    path = tmp_path / "transforms.json"
+    path.write_text(json.dumps(tf))
+    assert bpy.ops.objnerf.import_scene(filepath=str(path), backgrounds=False) == {"FINISHED"}
+    cam = scene_objects("CAMERA")[0]
+    assert cam["objnerf_camera_model"] == "OPENCV"
+    assert dict(cam["objnerf_distortion"]) == {"k1": -0.05, "p2": 0.001}
+    assert cam.data.lens == pytest.approx(336.0 / 320.0 * 36.0) and cam.data.shift_x == 0.0

@@ -103,18 +103,34 @@ def test_invoke_without_a_window_runs_to_the_end(prefs, demo_run, tmp_path):
     assert bpy.ops.objnerf.render_edit("INVOKE_DEFAULT", directory=str(tmp_path / "w")) == {"FINISHED"}
 
 
-def test_background_job_progress_and_cancel(prefs, demo_run, tmp_path, monkeypatch):
+def test_modal_session_on_timer_events(prefs, demo_run, tmp_path):
+    """What the modal operator does per event, driven here without Blender's event loop."""
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    setup_scene(demo_run, n_frames=3)
+    session = render.RenderSession(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))
+    assert session.tick(bpy.context, "MOUSEMOVE") == "PASS"
+    states = []
+    deadline = time.monotonic() + 120
+    while (not states or states[-1] == "RUNNING") and time.monotonic() < deadline:
+        states.append(session.tick(bpy.context, "TIMER"))
+        time.sleep(0.1)
+    assert states[-1] == "FINISHED" and "RUNNING" in states and session.frames == 3
+
+
+def test_cancel_stops_the_render(prefs, demo_run, tmp_path, monkeypatch):
     prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
     setup_scene(demo_run, n_frames=4)
     monkeypatch.setenv("STANDIN_SLOW", "1.0")
-    job, out = render.start_job(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))
+    session = render.RenderSession(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))
+    job = session.job
     assert job.total == 4 and job.progress() == 0.0
     deadline = time.monotonic() + 60
     while job.progress() == 0.0 and time.monotonic() < deadline:
+        assert session.tick(bpy.context, "TIMER") == "RUNNING"
         time.sleep(0.1)
     assert 0.0 < job.progress() < 1.0, "the stand-in wrote no frame within 60 s"
-    job.cancel()
-    assert job.poll() is not None
+    assert session.tick(bpy.context, "ESC") == "CANCELLED"
+    assert job.poll() is not None  # the process is gone
     with pytest.raises(Exception, match="cancelled"):
         job.finish()
 

@@ -81,7 +81,7 @@ def test_orbit_edit_render_edit_and_back(prefs, two_object_run, tmp_path):
     mug.rotation_quaternion = Quaternion((0, 0, 1), math.radians(90))
     torus.objnerf.recolour_mode = "TARGET"
     torus.objnerf.recolour_target = (0.125, 0.314, 1.0)
-    cam = orbit_camera(n=24, radius=2.2, height=1.1, lens=(35.0, 35.0))
+    orbit_camera(n=24, radius=2.2, height=1.1, lens=(35.0, 35.0))
     # A Blender object standing among the NeRF objects, for the composite.
     bpy.ops.mesh.primitive_cone_add(radius1=0.12, depth=0.35, location=(0.1, -0.35, 0.175))
     work = tmp_path / "work"
