@@ -191,7 +191,7 @@ def _render_truth(context, tmp, i):
     return decode(_load_exr(ids[0])), depth[0]
 
 
-def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="EXR"):
+def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="EXR", light="STUDIO"):
     """Render every camera into a nerfstudio dataset at `out_dir`; returns the transforms dict."""
     scene = context.scene
     if not cams:
@@ -226,7 +226,7 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
             scene.camera = cam
             stem = f"frame_{i:05d}"
             # 1. The image, as the scene renders.
-            image_settings(saved, scene, engine, samples, truth=False)
+            image_settings(saved, scene, engine, samples, truth=False, light=light)
             r.filepath = os.path.join(out_dir, "images", stem + ".png")
             nodes[1].mute = True
             bpy.ops.render.render(write_still=True)
@@ -255,8 +255,9 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
     return _write_transforms(out_dir, frames_out, objs, names, w, h)
 
 
-def image_settings(saved, scene, engine, samples, truth):
-    """Engine settings for the image (engine as chosen) or the truth pass (flat, no AA)."""
+def image_settings(saved, scene, engine, samples, truth, light="STUDIO"):
+    """Engine settings for the image (engine as chosen; Workbench lit by `light`, textured) or
+    the truth pass (flat, no AA)."""
     r = scene.render
     saved.set(r, "engine", engine)
     saved.set(r, "use_compositing", truth)
@@ -273,7 +274,7 @@ def image_settings(saved, scene, engine, samples, truth):
             saved.set(sh, attr, value)
     elif engine == "BLENDER_WORKBENCH":
         saved.set(scene.display, "render_aa", "8")
-        for attr, value in (("light", "STUDIO"), ("color_type", "TEXTURE"), ("show_object_outline", False),
+        for attr, value in (("light", light), ("color_type", "TEXTURE"), ("show_object_outline", False),
                             ("show_cavity", False), ("show_shadows", False), ("show_xray", False)):
             saved.set(sh, attr, value)
 
@@ -342,6 +343,9 @@ class OBJNERF_OT_export_dataset(bpy.types.Operator):
         ("BLENDER_WORKBENCH", "Workbench", "Fast, textured, studio light"),
         ("CYCLES", "Cycles", "Path traced on the CPU")])
     samples: IntProperty(name="Cycles samples", default=16, min=1)
+    light: EnumProperty(name="Workbench light", default="STUDIO", items=[
+        ("STUDIO", "Studio", "Shaded by Workbench's studio light"),
+        ("FLAT", "Flat", "Texture colours only, no shading")])
     depth_format: EnumProperty(name="Depth", default="EXR", items=[
         ("EXR", "EXR (metres)", "32-bit float, metres"),
         ("PNG", "PNG (mm)", "16-bit millimetres, nerfstudio's default depth reading")])
@@ -356,7 +360,7 @@ class OBJNERF_OT_export_dataset(bpy.types.Operator):
         else:
             cams = make_cameras(context, objs, self.cameras, self.count, self.lens, self.elevation, self.distance)
         out = bpy.path.abspath(self.directory)
-        tf = export_dataset(context, out, cams, objs, self.engine, self.samples, self.depth_format)
+        tf = export_dataset(context, out, cams, objs, self.engine, self.samples, self.depth_format, self.light)
         self.report({"INFO"}, f"wrote {len(tf['frames'])} views of {len(objs)} objects to {out}")
         return {"FINISHED"}
 

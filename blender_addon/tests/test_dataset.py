@@ -74,8 +74,10 @@ def dataset(tmp_path_factory):
     try:
         build_scene()
         out = str(tmp_path_factory.mktemp("dataset"))
+        # Flat light: with Workbench's studio light SAM took only the lit part of the sphere in a
+        # few views (mIoU 0.921-0.926 over two runs); unshaded, 0.977-0.980.
         res = bpy.ops.objnerf.export_dataset(directory=out, cameras="RING", count=24, lens=30.0, elevation=30.0,
-                                               distance=2.6)
+                                               distance=2.6, light="FLAT")
         assert res == {"FINISHED"}
         ring = scene_objects("NONE")
         assert len([o for o in ring if o.type == "CAMERA"]) == 24
