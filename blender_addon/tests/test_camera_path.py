@@ -1,0 +1,128 @@
+"""camera_path.json from an animated Blender camera: read back as nerfstudio reads it, every frame
+is the camera Blender renders (pose in the capture frame, intrinsics from Blender's projection)."""
+
+import math
+import os
+
+import bpy
+import numpy as np
+import pytest
+from conftest import scene_objects
+from mathutils import Matrix, Vector
+from objnerf_blender import camera_path, frames
+
+
+def orbit_camera(n=24, radius=1.6, height=0.9, lens=(30.0, 42.0)):
+    """A camera keyframed on a circle around the origin, looking at it, its lens zooming."""
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("orbit", bpy.data.cameras.new("orbit"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.frame_start, scene.frame_end = 1, n
+    for i in range(n):
+        a = 2 * math.pi * i / n
+        pos = Vector((radius * math.cos(a), radius * math.sin(a), height))
+        cam.location = pos
+        cam.rotation_euler = (-pos).to_track_quat("-Z", "Y").to_euler()
+        cam.data.lens = lens[0] + (lens[1] - lens[0]) * i / (n - 1)
+        cam.keyframe_insert("location", frame=i + 1)
+        cam.keyframe_insert("rotation_euler", frame=i + 1)
+        cam.data.keyframe_insert("lens", frame=i + 1)
+    return cam
+
+
+def blender_intrinsics(cam, w, h):
+    dg = bpy.context.evaluated_depsgraph_get()
+    proj = cam.evaluated_get(dg).calc_matrix_camera(dg, x=w, y=h, scale_x=1, scale_y=1)
+    return frames.projection_intrinsics(proj, w, h)
+
+
+def test_camera_path_reads_back_to_blenders_cameras(prefs, demo_run, tmp_path):
+    bpy.ops.objnerf.import_run(directory=os.path.join(demo_run, "run"), backgrounds=False)
+    root = scene_objects("ROOT")[0]
+    # A capture that is not +Z up (as COLMAP gives): the parent turns and moves it, and the
+    # path must still come out in the capture frame.
+    root.matrix_world = Matrix.Translation((0.3, -0.1, 0.2)) @ Matrix.Rotation(math.radians(-90), 4, "X")
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 320, 240, 50
+    scene.render.fps, scene.render.fps_base = 30, 1.001
+    cam = orbit_camera()
+    out = tmp_path / "camera_path.json"
+    assert bpy.ops.objnerf.export_camera_path(filepath=str(out)) == {"FINISHED"}
+    doc = __import__("json").loads(out.read_text())
+    assert doc["camera_type"] == "perspective"
+    assert (doc["render_width"], doc["render_height"]) == (160, 120)
+    assert doc["fps"] == pytest.approx(30 / 1.001) and doc["seconds"] == pytest.approx(24 * 1.001 / 30)
+    path = camera_path.read_camera_path(str(out))
+    assert len(path) == 24
+    pts = np.random.default_rng(0).uniform(-0.3, 0.3, (50, 3))  # capture frame
+    worst_m, worst_k, worst_px = 0.0, 0.0, 0.0
+    for i, c in enumerate(path):
+        scene.frame_set(i + 1)
+        want = np.array(frames.rigid_part(root.matrix_world.inverted() @ cam.matrix_world))
+        worst_m = max(worst_m, np.abs(c["c2w"] - want).max())
+        k = blender_intrinsics(cam, 160, 120)
+        # Relative to fx: Blender's projection matrix is single precision.
+        worst_k = max(worst_k, max(abs(a - b) / c["fx"] for a, b in zip((c["fx"], c["fy"], c["cx"], c["cy"]), k)))
+        # Pixels of the same points: through Blender (world) and through the path (capture).
+        world = np.c_[pts, np.ones(len(pts))] @ np.array(root.matrix_world).T[:, :3]
+        dg = bpy.context.evaluated_depsgraph_get()
+        proj = cam.evaluated_get(dg).calc_matrix_camera(dg, x=160, y=120)
+        hom = np.c_[world, np.ones(len(world))] @ np.array(proj @ cam.matrix_world.inverted()).T
+        ndc = hom[:, :2] / hom[:, 3:4]
+        theirs = np.stack([(ndc[:, 0] + 1) * 80, (1 - ndc[:, 1]) * 60], axis=1)
+        ours = frames.opencv_project(pts, c["c2w"], c["fx"], c["fy"], c["cx"], c["cy"])[:, :2]
+        worst_px = max(worst_px, np.abs(theirs - ours).max())
+    scene.frame_set(1)
+    print(f"camera path: 24 frames, max |c2w| diff {worst_m:.1e}, max intrinsics diff {worst_k:.1e} fx, "
+          f"max pixel diff {worst_px:.1e} px")
+    assert worst_m < 1e-6 and worst_k < 1e-6 and worst_px < 1e-3
+
+
+@pytest.mark.parametrize("fit,size,aspect", [
+    ("AUTO", (320, 240), (1, 1)), ("AUTO", (240, 320), (1, 1)), ("HORIZONTAL", (240, 320), (1, 1)),
+    ("VERTICAL", (320, 240), (1, 1)), ("VERTICAL", (200, 300), (1, 1)), ("AUTO", (320, 240), (1.0, 1.3)),
+    ("AUTO", (240, 320), (1.4, 1.0)), ("HORIZONTAL", (320, 240), (1.0, 1.2)), ("VERTICAL", (320, 240), (1.25, 1.0))])
+def test_intrinsics_match_blenders_projection(addon, fit, size, aspect):
+    """frames.camera_intrinsics (double precision, from the camera's settings) against Blender's own
+    projection matrix, with lens shift, every sensor fit and non-square pixels."""
+    data = bpy.data.cameras.new("c")
+    data.sensor_fit, data.lens, data.sensor_width, data.sensor_height = fit, 28.0, 36.0, 20.0
+    data.shift_x, data.shift_y = 0.04, -0.07
+    cam = bpy.data.objects.new("c", data)
+    bpy.context.scene.collection.objects.link(cam)
+    w, h = size
+    dg = bpy.context.evaluated_depsgraph_get()
+    proj = cam.evaluated_get(dg).calc_matrix_camera(dg, x=w, y=h, scale_x=aspect[0], scale_y=aspect[1])
+    want = frames.projection_intrinsics(proj, w, h)
+    got = frames.camera_intrinsics(data, w, h, aspect)
+    assert np.allclose(got, want, rtol=1e-6), (got, want)  # Blender's matrix is single precision
+    if aspect == (1, 1):
+        assert frames.vertical_fov_degrees(data, w, h) == pytest.approx(math.degrees(2 * math.atan(h / 2 / want[1])), rel=1e-6)
+
+
+def test_intrinsics_round_trip_through_a_blender_camera(addon):
+    """fx != fy and an off-centre principal point: Blender's projection gives them back."""
+    scene = bpy.context.scene
+    for (fx, fy, cx, cy, w, h) in ((300.0, 300.0, 171.5, 112.25, 320, 240), (410.0, 380.0, 150.0, 200.0, 300, 420),
+                                   (250.0, 290.0, 160.0, 100.0, 320, 240)):
+        data = bpy.data.cameras.new("c")
+        ax, ay = frames.apply_intrinsics(data, fx, fy, cx, cy, w, h)
+        cam = bpy.data.objects.new("c", data)
+        scene.collection.objects.link(cam)
+        dg = bpy.context.evaluated_depsgraph_get()
+        proj = cam.evaluated_get(dg).calc_matrix_camera(dg, x=w, y=h, scale_x=ax, scale_y=ay)
+        got = frames.projection_intrinsics(proj, w, h)
+        assert np.allclose(got, (fx, fy, cx, cy), atol=1e-3), (got, (fx, fy, cx, cy))
+
+
+def test_camera_path_refuses_shift_and_non_square_pixels(prefs, demo_run, tmp_path):
+    bpy.ops.objnerf.import_run(directory=os.path.join(demo_run, "run"), backgrounds=False)
+    cam = orbit_camera(n=3)
+    cam.data.shift_x = 0.1
+    with pytest.raises(RuntimeError, match="lens shift"):
+        bpy.ops.objnerf.export_camera_path(filepath=str(tmp_path / "p.json"))
+    cam.data.shift_x = 0.0
+    bpy.context.scene.render.pixel_aspect_x = 2.0
+    with pytest.raises(RuntimeError, match="square pixels"):
+        bpy.ops.objnerf.export_camera_path(filepath=str(tmp_path / "p.json"))
