@@ -6,6 +6,7 @@
 pub mod demo;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod extract;
 pub mod field;
 pub mod info;

@@ -80,6 +80,11 @@ enum Command {
     /// The main job on the built-in demo scene: render it, extract one object from one click
     /// (segment, train, mesh, turntable) and score each stage against the scene's exact truth.
     Demo(objnerf::demo::job::DemoCmd),
+    /// Export a run or a scene for other tools.
+    Export {
+        #[command(subcommand)]
+        to: ExportTo,
+    },
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene {
         /// Output folder (created; must be empty unless --overwrite).
@@ -163,6 +168,32 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum ExportTo {
+    /// A nerfstudio dataset: transforms.json, images, masks (0 = ignore), depth, sparse_pc.ply.
+    Nerfstudio(ExportNerfstudio),
+}
+
+#[derive(clap::Args)]
+struct ExportNerfstudio {
+    /// A run of `objnerf segment` or `objnerf extract`, or a scene.
+    input: PathBuf,
+    /// Output folder (must be empty unless --overwrite).
+    #[arg(long)]
+    out: PathBuf,
+    /// The run's object (default: its only one); obstructed and absent views are left out.
+    #[arg(long, conflicts_with = "background")]
+    object: Option<String>,
+    /// The scene without the run's objects: their masks reversed, every view.
+    #[arg(long)]
+    background: bool,
+    /// Resize images, masks and depth by this factor (1: images linked as they are).
+    #[arg(long, default_value_t = 1)]
+    downscale: u32,
+    #[arg(long)]
+    overwrite: bool,
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { scene, json } => {
@@ -225,6 +256,20 @@ fn run(cli: Cli) -> Result<()> {
         Command::Segment(cmd) => cmd.run(&std::env::args().collect::<Vec<_>>()),
         Command::Bench { what } => what.run(),
         Command::Demo(cmd) => cmd.run(),
+        Command::Export {
+            to: ExportTo::Nerfstudio(a),
+        } => {
+            use objnerf::export::nerfstudio::{export, ExportOptions};
+            let (object, background) = (a.object, a.background);
+            let opts = ExportOptions {
+                object,
+                background,
+                downscale: a.downscale,
+                overwrite: a.overwrite,
+            };
+            println!("{}", export(&a.input, &a.out, &opts)?.summary());
+            Ok(())
+        }
         Command::DemoScene {
             out,
             seed,

@@ -1,0 +1,598 @@
+//! `objnerf export nerfstudio`: a dataset nerfstudio's `NerfstudioDataParser` loads unchanged.
+//!
+//! ```text
+//! DIR/transforms.json   cameras (nerfstudio's model names, per-frame intrinsics where cameras
+//!                       differ), camera-to-world in the OpenGL frame, applied_transform if any
+//! DIR/images/...        the views: hard links to the originals (copies across file systems), or
+//!                       PNGs resized by --downscale
+//! DIR/masks/....png     one channel, 0 = ignore: the object's masks, or their reverse for
+//!                       --background, or the scene's own masks
+//! DIR/depth/....png     16-bit millimetres, when the scene has depth
+//! DIR/sparse_pc.ply     the object's segmented points, the sparse points without the objects'
+//!                       (--background), or all of them
+//! ```
+//!
+//! The input is a scene, or a run of `objnerf segment` / `objnerf extract`, whose
+//! `segment/report.json` names the scene and says per view whether the object is ok, obstructed
+//! or absent: an object export keeps the ok views only.
+
+use crate::error::{Error, Result};
+use crate::scene::formats::{intern_camera, nerfstudio, ply};
+use crate::scene::io::{read_depth, read_mask, write_depth_png_mm, DepthMap};
+use crate::scene::{Camera, ImageView, Point3D, Scene, SceneCamera};
+use crate::segment::output::mask_file_stem;
+use crate::util::atomic::save_image_atomic;
+use crate::util::paths::normalize;
+use crate::util::AtomicDir;
+use glam::DVec3;
+use image::{imageops, DynamicImage, GrayImage};
+use rayon::prelude::*;
+use serde::Deserialize;
+use std::collections::{HashMap, HashSet};
+use std::path::{Component, Path, PathBuf};
+use std::time::Instant;
+
+/// What to export and how.
+#[derive(Clone, Debug, Default)]
+pub struct ExportOptions {
+    /// The run's object whose masks to export (default: the run's only object).
+    pub object: Option<String>,
+    /// Export the scene without the run's objects: reverse masks, every view.
+    pub background: bool,
+    /// Resize images, masks and depth by this factor (1: link the images as they are).
+    pub downscale: u32,
+    /// Replace a non-empty output folder.
+    pub overwrite: bool,
+}
+
+/// A view that is not in the export, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LeftOut {
+    pub view: String,
+    /// The segmentation's status for the object: "obstructed", "absent", or "not segmented".
+    pub status: String,
+}
+
+/// What was written.
+#[derive(Clone, Debug)]
+pub struct ExportReport {
+    pub out: PathBuf,
+    pub scene: PathBuf,
+    pub frames: usize,
+    /// What the masks hold, when there are masks.
+    pub masks: Option<String>,
+    pub depth: bool,
+    pub points: usize,
+    pub images_linked: usize,
+    pub images_copied: usize,
+    pub images_resized: usize,
+    pub left_out: Vec<LeftOut>,
+    pub seconds: f64,
+}
+
+impl ExportReport {
+    /// A few lines for a person.
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "wrote {}: {} frames from {} (images: {} linked, {} copied, {} resized)\n",
+            self.out.display(),
+            self.frames,
+            self.scene.display(),
+            self.images_linked,
+            self.images_copied,
+            self.images_resized
+        );
+        let masks = self.masks.as_deref().unwrap_or("none");
+        let depth = if self.depth { "16-bit mm" } else { "none" };
+        s += &format!("masks: {masks}; depth: {depth}; points: {}\n", self.points);
+        for status in ["obstructed", "absent", "not segmented"] {
+            let views: Vec<&str> = self
+                .left_out
+                .iter()
+                .filter(|l| l.status == status)
+                .map(|l| l.view.as_str())
+                .collect();
+            if !views.is_empty() {
+                s += &format!(
+                    "left out {} {status} view(s): {}\n",
+                    views.len(),
+                    views.join(", ")
+                );
+            }
+        }
+        s + &format!("in {:.1} s", self.seconds)
+    }
+}
+
+/// Where a view's mask comes from.
+#[derive(Clone, Debug)]
+enum MaskSource {
+    None,
+    /// Kept where the mask is on (> 127): an object's mask or the scene's own.
+    Keep(PathBuf),
+    /// Kept where none of these masks is on (none: all kept).
+    Reverse(Vec<PathBuf>),
+}
+
+struct FramePlan {
+    image: usize,
+    mask: MaskSource,
+}
+
+struct Plan {
+    scene: Scene,
+    frames: Vec<FramePlan>,
+    masks: Option<String>,
+    points: Vec<(DVec3, [u8; 3])>,
+    left_out: Vec<LeftOut>,
+}
+
+/// Export `input` (a scene, or a segment/extract run) as a nerfstudio dataset in `out`.
+/// Nothing is left in `out` on an error: it is built beside it and renamed into place.
+pub fn export(input: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportReport> {
+    let t0 = Instant::now();
+    if opts.downscale == 0 {
+        return Err(Error::invalid("--downscale must be at least 1"));
+    }
+    if opts.background && opts.object.is_some() {
+        return Err(Error::invalid(
+            "give --object or --background, not both: --background leaves out every object of the run",
+        ));
+    }
+    let dest = AtomicDir::new(out, opts.overwrite)?;
+    let plan = match find_segment_dir(input) {
+        Some(seg_dir) => plan_run(&seg_dir, opts)?,
+        None if opts.object.is_some() || opts.background => {
+            return Err(Error::invalid(format!(
+                "{}: --object and --background need a run of `objnerf segment` or `objnerf extract` (a folder with segment/report.json or report.json and masks/), not a scene",
+                input.display()
+            )))
+        }
+        None => plan_scene(Scene::load(input)?),
+    };
+    if plan.frames.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: no view is left to export ({} left out)",
+            input.display(),
+            plan.left_out.len()
+        )));
+    }
+    check_unique_names(&plan)?;
+    let root = dest.path().to_path_buf();
+    let written: Vec<FrameOut> = plan
+        .frames
+        .par_iter()
+        .map(|f| write_frame(&plan.scene, f, &root, opts.downscale))
+        .collect::<Result<_>>()?;
+    let exported = export_scene(&plan, &written, &root);
+    nerfstudio::write(&exported, &root.join("transforms.json"))?;
+    let count = |p: Placed| written.iter().filter(|f| f.placed == p).count();
+    let report = ExportReport {
+        out: out.to_path_buf(),
+        scene: plan.scene.source.clone(),
+        frames: written.len(),
+        masks: plan.masks.clone(),
+        depth: written.iter().any(|f| f.depth.is_some()),
+        points: plan.points.len(),
+        images_linked: count(Placed::Linked),
+        images_copied: count(Placed::Copied),
+        images_resized: count(Placed::Resized),
+        left_out: plan.left_out,
+        seconds: 0.0,
+    };
+    dest.commit()?;
+    Ok(ExportReport {
+        seconds: t0.elapsed().as_secs_f64(),
+        ..report
+    })
+}
+
+/// The segmentation folder of a run: `RUN/segment/` (extract) or `RUN/` itself (segment).
+fn find_segment_dir(input: &Path) -> Option<PathBuf> {
+    if input.join("segment/report.json").is_file() {
+        Some(input.join("segment"))
+    } else if input.join("report.json").is_file() && input.join("masks").is_dir() {
+        Some(input.to_path_buf())
+    } else {
+        None
+    }
+}
+
+/// The parts of `objnerf segment`'s report.json the export reads.
+#[derive(Deserialize)]
+struct SegmentReport {
+    scene: PathBuf,
+    objects: Vec<SegmentObject>,
+}
+
+#[derive(Deserialize)]
+struct SegmentObject {
+    name: String,
+    views: Vec<SegmentView>,
+}
+
+#[derive(Deserialize)]
+struct SegmentView {
+    view: String,
+    status: String,
+}
+
+/// The mask `objnerf segment` wrote for view `image_name` of `object`.
+// mask-name rule
+fn run_mask_path(seg_dir: &Path, object: &str, image_name: &str) -> PathBuf {
+    seg_dir
+        .join("masks")
+        .join(object)
+        .join(format!("{}.png", mask_file_stem(image_name)))
+}
+
+/// The report's scene path: as written, or (when it was relative to a folder the run was made
+/// from) relative to one of the run's parent folders.
+fn resolve_scene(report_path: &Path, seg_dir: &Path, scene: &Path) -> Result<PathBuf> {
+    if scene.exists() || scene.is_absolute() {
+        return Ok(scene.to_path_buf());
+    }
+    crate::util::paths::absolute(seg_dir)
+        .ancestors()
+        .map(|a| a.join(scene))
+        .find(|p| p.exists())
+        .ok_or_else(|| {
+            Error::format(
+                report_path,
+                format!(
+                    "its scene {} is not found (a relative path is read from the folder the run was made in: export from there)",
+                    scene.display()
+                ),
+            )
+        })
+}
+
+fn plan_run(seg_dir: &Path, opts: &ExportOptions) -> Result<Plan> {
+    let report_path = seg_dir.join("report.json");
+    let report: SegmentReport = nerfstudio::read_json_file(&report_path)?;
+    let scene = Scene::load(&resolve_scene(&report_path, seg_dir, &report.scene)?)?;
+    let names: Vec<&str> = report.objects.iter().map(|o| o.name.as_str()).collect();
+    let objects: Vec<&SegmentObject> =
+        match (&opts.object, opts.background) {
+            (_, true) => report.objects.iter().collect(),
+            (Some(name), false) => vec![report
+                .objects
+                .iter()
+                .find(|o| &o.name == name)
+                .ok_or_else(|| {
+                    Error::invalid(format!(
+                        "{}: no object '{name}' in this run (objects: {})",
+                        report_path.display(),
+                        names.join(", ")
+                    ))
+                })?],
+            (None, false) if report.objects.len() == 1 => vec![&report.objects[0]],
+            (None, false) => {
+                return Err(Error::invalid(format!(
+                    "{}: the run has {} objects ({}): choose one with --object, or --background",
+                    report_path.display(),
+                    names.len(),
+                    names.join(", ")
+                )))
+            }
+        };
+    let status: Vec<HashMap<&str, &str>> = objects
+        .iter()
+        .map(|o| {
+            o.views
+                .iter()
+                .map(|v| (v.view.as_str(), v.status.as_str()))
+                .collect()
+        })
+        .collect();
+    let (mut frames, mut left_out) = (Vec::new(), Vec::new());
+    for (i, im) in scene.images.iter().enumerate() {
+        let mask = if opts.background {
+            // Every view: the objects' masks where they were segmented (ok or obstructed).
+            MaskSource::Reverse(
+                objects
+                    .iter()
+                    .map(|o| run_mask_path(seg_dir, &o.name, &im.name))
+                    .filter(|p| p.is_file())
+                    .collect(),
+            )
+        } else {
+            match status[0].get(im.name.as_str()) {
+                Some(&"ok") => MaskSource::Keep(run_mask_path(seg_dir, &objects[0].name, &im.name)),
+                other => {
+                    left_out.push(LeftOut {
+                        view: im.name.clone(),
+                        status: other.unwrap_or(&"not segmented").to_string(),
+                    });
+                    continue;
+                }
+            }
+        };
+        frames.push(FramePlan { image: i, mask });
+    }
+    let object_points =
+        |o: &SegmentObject| ply::read_points(&seg_dir.join(format!("{}_points.ply", o.name)));
+    let (masks, points) = if opts.background {
+        let names: Vec<String> = objects.iter().map(|o| format!("'{}'", o.name)).collect();
+        let mut taken = HashSet::new();
+        for o in &objects {
+            taken.extend(object_points(o)?.iter().map(|(p, _)| f32_key(*p)));
+        }
+        let rest = scene
+            .points
+            .iter()
+            .filter(|p| !taken.contains(&f32_key(p.xyz)))
+            .map(|p| (p.xyz, p.rgb))
+            .collect();
+        (
+            format!("background (the reverse of {})", names.join(", ")),
+            rest,
+        )
+    } else {
+        (
+            format!("object '{}'", objects[0].name),
+            object_points(objects[0])?,
+        )
+    };
+    Ok(Plan {
+        scene,
+        frames,
+        masks: Some(masks),
+        points,
+        left_out,
+    })
+}
+
+/// A point as the segmented-points PLY stores it (float32), to match the scene's points.
+fn f32_key(p: DVec3) -> [u32; 3] {
+    p.to_array().map(|v| (v as f32).to_bits())
+}
+
+fn plan_scene(scene: Scene) -> Plan {
+    let frames = scene
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| FramePlan {
+            image: i,
+            mask: im
+                .mask_path
+                .clone()
+                .map_or(MaskSource::None, MaskSource::Keep),
+        })
+        .collect();
+    Plan {
+        masks: scene
+            .images
+            .iter()
+            .any(|i| i.mask_path.is_some())
+            .then(|| "the scene's masks".to_string()),
+        points: scene.points.iter().map(|p| (p.xyz, p.rgb)).collect(),
+        frames,
+        left_out: Vec::new(),
+        scene,
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Placed {
+    Linked,
+    Copied,
+    Resized,
+}
+
+struct FrameOut {
+    image: usize,
+    /// Paths relative to the dataset folder.
+    file: PathBuf,
+    mask: Option<PathBuf>,
+    depth: Option<PathBuf>,
+    camera: Camera,
+    placed: Placed,
+}
+
+/// A view's name as a path inside the dataset folder (never outside it).
+fn inside(name: &str) -> PathBuf {
+    let p = normalize(Path::new(name));
+    if p.components().all(|c| matches!(c, Component::Normal(_))) {
+        p
+    } else {
+        PathBuf::from(p.file_name().unwrap_or(p.as_os_str()))
+    }
+}
+
+/// Two views whose names differ only in their extension would share a mask, depth or resized
+/// image file.
+fn check_unique_names(plan: &Plan) -> Result<()> {
+    let mut seen = HashSet::new();
+    for f in &plan.frames {
+        let name = &plan.scene.images[f.image].name;
+        if !seen.insert(inside(name).with_extension("png")) {
+            return Err(Error::format(
+                &plan.scene.source,
+                format!("two views are named '{}' but for their extension: their masks and depth would share a file", Path::new(name).with_extension("").display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn write_frame(scene: &Scene, plan: &FramePlan, root: &Path, factor: u32) -> Result<FrameOut> {
+    let im = &scene.images[plan.image];
+    let full = scene.camera_of(im);
+    let camera = if factor > 1 {
+        full.downscaled(factor)
+    } else {
+        full.clone()
+    };
+    let size = (camera.width, camera.height);
+    let rel = inside(&im.name);
+    let as_png = rel.with_extension("png");
+    let (file, placed) = if factor > 1 {
+        let img = image::open(&im.path).map_err(|e| Error::image(&im.path, e))?;
+        check_size(&im.path, (img.width(), img.height()), full)?;
+        let small = img.resize_exact(size.0, size.1, imageops::FilterType::Triangle);
+        let file = Path::new("images").join(&as_png);
+        save_image_atomic(&root.join(&file), &small)?;
+        (file, Placed::Resized)
+    } else {
+        check_size(&im.path, crate::scene::formats::image_size(&im.path)?, full)?;
+        let file = Path::new("images").join(&rel);
+        (file.clone(), place_file(&im.path, &root.join(&file))?)
+    };
+    let mask = match mask_image(&plan.mask, full, size)? {
+        Some(m) => {
+            let file = Path::new("masks").join(&as_png);
+            save_image_atomic(&root.join(&file), &DynamicImage::ImageLuma8(m))?;
+            Some(file)
+        }
+        None => None,
+    };
+    let depth = match &im.depth_path {
+        Some(src) => {
+            let d = read_depth(src, scene.depth_scale)?;
+            check_size(src, (d.width, d.height), full)?;
+            let file = Path::new("depth").join(&as_png);
+            write_depth_png_mm(&root.join(&file), &resample_nearest(&d, size))?;
+            Some(file)
+        }
+        None => None,
+    };
+    Ok(FrameOut {
+        image: plan.image,
+        file,
+        mask,
+        depth,
+        camera,
+        placed,
+    })
+}
+
+fn check_size(path: &Path, got: (u32, u32), camera: &Camera) -> Result<()> {
+    if got != (camera.width, camera.height) {
+        return Err(Error::format(
+            path,
+            format!(
+                "is {}x{} but its camera says {}x{}",
+                got.0, got.1, camera.width, camera.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Hard-link `src` (links resolved) to `dest`, or copy it where a link cannot be made (another
+/// file system).
+fn place_file(src: &Path, dest: &Path) -> Result<Placed> {
+    let src = src.canonicalize().map_err(|e| Error::io(src, e))?;
+    if let Some(dir) = dest.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    if std::fs::hard_link(&src, dest).is_ok() {
+        return Ok(Placed::Linked);
+    }
+    std::fs::copy(&src, dest).map_err(|e| Error::io(dest, e))?;
+    Ok(Placed::Copied)
+}
+
+/// The nerfstudio mask (255 = use, 0 = ignore) at `size`, from masks at the camera's full size.
+fn mask_image(source: &MaskSource, full: &Camera, size: (u32, u32)) -> Result<Option<GrayImage>> {
+    let read = |p: &PathBuf| -> Result<GrayImage> {
+        let m = read_mask(p)?;
+        check_size(p, m.dimensions(), full)?;
+        Ok(m)
+    };
+    let keep = match source {
+        MaskSource::None => return Ok(None),
+        MaskSource::Keep(p) => {
+            let mut m = read(p)?;
+            m.pixels_mut()
+                .for_each(|v| v.0[0] = if v.0[0] > 127 { 255 } else { 0 });
+            m
+        }
+        MaskSource::Reverse(objects) => {
+            let mut keep = GrayImage::from_pixel(full.width, full.height, image::Luma([255]));
+            for p in objects {
+                for (k, v) in keep.pixels_mut().zip(read(p)?.pixels()) {
+                    if v.0[0] > 127 {
+                        k.0[0] = 0;
+                    }
+                }
+            }
+            keep
+        }
+    };
+    if keep.dimensions() == size {
+        return Ok(Some(keep));
+    }
+    let mut small = imageops::resize(&keep, size.0, size.1, imageops::FilterType::Triangle);
+    small
+        .pixels_mut()
+        .for_each(|v| v.0[0] = if v.0[0] > 127 { 255 } else { 0 });
+    Ok(Some(small))
+}
+
+/// Depth at `size` by nearest sampling (as nerfstudio resizes depth): averaging across an edge
+/// would invent depths that are on neither surface.
+fn resample_nearest(d: &DepthMap, size: (u32, u32)) -> DepthMap {
+    if (d.width, d.height) == size {
+        return d.clone();
+    }
+    let (w, h) = size;
+    let src = |i: u32, n: u32, m: u32| (((i as f64 + 0.5) * m as f64 / n as f64) as u32).min(m - 1);
+    let mut metres = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        let sy = src(y, h, d.height);
+        for x in 0..w {
+            metres.push(d.metres[(sy * d.width + src(x, w, d.width)) as usize]);
+        }
+    }
+    DepthMap {
+        width: w,
+        height: h,
+        metres,
+    }
+}
+
+/// The exported dataset as a scene, its files under `root`, for the transforms.json writer.
+fn export_scene(plan: &Plan, written: &[FrameOut], root: &Path) -> Scene {
+    let mut cameras: Vec<SceneCamera> = Vec::new();
+    let images = written
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let src = &plan.scene.images[f.image];
+            ImageView {
+                id: i as u32 + 1,
+                name: f.file.to_string_lossy().replace('\\', "/"),
+                path: root.join(&f.file),
+                camera: intern_camera(&mut cameras, f.camera.clone()),
+                pose: src.pose,
+                mask_path: f.mask.as_ref().map(|m| root.join(m)),
+                depth_path: f.depth.as_ref().map(|d| root.join(d)),
+                features: Vec::new(),
+            }
+        })
+        .collect();
+    let points = plan
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, &(xyz, rgb))| Point3D {
+            id: i as u64 + 1,
+            xyz,
+            rgb,
+            error: -1.0,
+            track: Vec::new(),
+        })
+        .collect();
+    Scene {
+        source: root.join("transforms.json"),
+        format: crate::scene::SourceFormat::Nerfstudio,
+        cameras,
+        images,
+        points,
+        depth_scale: 1000.0,
+        applied_transform: plan.scene.applied_transform,
+    }
+}
