@@ -2,3 +2,4 @@
 //! masks, depth, points) that nerfstudio's own dataparser loads unchanged.
 
 pub mod nerfstudio;
+pub mod segment_run;

@@ -16,19 +16,18 @@
 //! `segment/report.json` names the scene and says per view whether the object is ok, obstructed
 //! or absent: an object export keeps the ok views only.
 
+use super::segment_run::{RunObject, SegmentRun};
 use crate::error::{Error, Result};
-use crate::scene::formats::{intern_camera, nerfstudio, ply};
+use crate::scene::formats::{intern_camera, nerfstudio};
 use crate::scene::io::{read_depth, read_mask, write_depth_png_mm, DepthMap};
 use crate::scene::{Camera, ImageView, Point3D, Scene, SceneCamera};
-use crate::segment::output::mask_file_stem;
 use crate::util::atomic::save_image_atomic;
 use crate::util::paths::normalize;
 use crate::util::AtomicDir;
 use glam::DVec3;
 use image::{imageops, DynamicImage, GrayImage};
 use rayon::prelude::*;
-use serde::Deserialize;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::path::{Component, Path, PathBuf};
 use std::time::Instant;
 
@@ -140,8 +139,8 @@ pub fn export(input: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportRe
         ));
     }
     let dest = AtomicDir::new(out, opts.overwrite)?;
-    let plan = match find_segment_dir(input) {
-        Some(seg_dir) => plan_run(&seg_dir, opts)?,
+    let plan = match SegmentRun::find(input) {
+        Some(dir) => plan_run(SegmentRun::open(&dir)?, opts)?,
         None if opts.object.is_some() || opts.background => {
             return Err(Error::invalid(format!(
                 "{}: --object and --background need a run of `objnerf segment` or `objnerf extract` (a folder with segment/report.json or report.json and masks/), not a scene",
@@ -187,122 +186,36 @@ pub fn export(input: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportRe
     })
 }
 
-/// The segmentation folder of a run: `RUN/segment/` (extract) or `RUN/` itself (segment).
-fn find_segment_dir(input: &Path) -> Option<PathBuf> {
-    if input.join("segment/report.json").is_file() {
-        Some(input.join("segment"))
-    } else if input.join("report.json").is_file() && input.join("masks").is_dir() {
-        Some(input.to_path_buf())
-    } else {
-        None
+/// The objects an export is about: `--object`, all for `--background`, or the run's only one.
+fn chosen_objects<'a>(run: &'a SegmentRun, opts: &ExportOptions) -> Result<Vec<&'a RunObject>> {
+    match (&opts.object, opts.background) {
+        (_, true) => Ok(run.objects.iter().collect()),
+        (Some(name), false) => Ok(vec![run.object(name)?]),
+        (None, false) if run.objects.len() == 1 => Ok(vec![&run.objects[0]]),
+        (None, false) => Err(Error::invalid(format!(
+            "{}: the run has {} objects ({}): choose one with --object, or --background",
+            run.dir.join("report.json").display(),
+            run.objects.len(),
+            run.object_names().join(", ")
+        ))),
     }
 }
 
-/// The parts of `objnerf segment`'s report.json the export reads.
-#[derive(Deserialize)]
-struct SegmentReport {
-    scene: PathBuf,
-    objects: Vec<SegmentObject>,
-}
-
-#[derive(Deserialize)]
-struct SegmentObject {
-    name: String,
-    views: Vec<SegmentView>,
-}
-
-#[derive(Deserialize)]
-struct SegmentView {
-    view: String,
-    status: String,
-}
-
-/// The mask `objnerf segment` wrote for view `image_name` of `object`.
-// mask-name rule
-fn run_mask_path(seg_dir: &Path, object: &str, image_name: &str) -> PathBuf {
-    seg_dir
-        .join("masks")
-        .join(object)
-        .join(format!("{}.png", mask_file_stem(image_name)))
-}
-
-/// The report's scene path: as written, or (when it was relative to a folder the run was made
-/// from) relative to one of the run's parent folders.
-fn resolve_scene(report_path: &Path, seg_dir: &Path, scene: &Path) -> Result<PathBuf> {
-    if scene.exists() || scene.is_absolute() {
-        return Ok(scene.to_path_buf());
-    }
-    crate::util::paths::absolute(seg_dir)
-        .ancestors()
-        .map(|a| a.join(scene))
-        .find(|p| p.exists())
-        .ok_or_else(|| {
-            Error::format(
-                report_path,
-                format!(
-                    "its scene {} is not found (a relative path is read from the folder the run was made in: export from there)",
-                    scene.display()
-                ),
-            )
-        })
-}
-
-fn plan_run(seg_dir: &Path, opts: &ExportOptions) -> Result<Plan> {
-    let report_path = seg_dir.join("report.json");
-    let report: SegmentReport = nerfstudio::read_json_file(&report_path)?;
-    let scene = Scene::load(&resolve_scene(&report_path, seg_dir, &report.scene)?)?;
-    let names: Vec<&str> = report.objects.iter().map(|o| o.name.as_str()).collect();
-    let objects: Vec<&SegmentObject> =
-        match (&opts.object, opts.background) {
-            (_, true) => report.objects.iter().collect(),
-            (Some(name), false) => vec![report
-                .objects
-                .iter()
-                .find(|o| &o.name == name)
-                .ok_or_else(|| {
-                    Error::invalid(format!(
-                        "{}: no object '{name}' in this run (objects: {})",
-                        report_path.display(),
-                        names.join(", ")
-                    ))
-                })?],
-            (None, false) if report.objects.len() == 1 => vec![&report.objects[0]],
-            (None, false) => {
-                return Err(Error::invalid(format!(
-                    "{}: the run has {} objects ({}): choose one with --object, or --background",
-                    report_path.display(),
-                    names.len(),
-                    names.join(", ")
-                )))
-            }
-        };
-    let status: Vec<HashMap<&str, &str>> = objects
-        .iter()
-        .map(|o| {
-            o.views
-                .iter()
-                .map(|v| (v.view.as_str(), v.status.as_str()))
-                .collect()
-        })
-        .collect();
+fn plan_run(run: SegmentRun, opts: &ExportOptions) -> Result<Plan> {
+    let objects = chosen_objects(&run, opts)?;
     let (mut frames, mut left_out) = (Vec::new(), Vec::new());
-    for (i, im) in scene.images.iter().enumerate() {
+    for (i, im) in run.scene.images.iter().enumerate() {
         let mask = if opts.background {
             // Every view: the objects' masks where they were segmented (ok or obstructed).
-            MaskSource::Reverse(
-                objects
-                    .iter()
-                    .map(|o| run_mask_path(seg_dir, &o.name, &im.name))
-                    .filter(|p| p.is_file())
-                    .collect(),
-            )
+            let masks = objects.iter().map(|o| run.mask_path(&o.name, &im.name));
+            MaskSource::Reverse(masks.filter(|p| p.is_file()).collect())
         } else {
-            match status[0].get(im.name.as_str()) {
-                Some(&"ok") => MaskSource::Keep(run_mask_path(seg_dir, &objects[0].name, &im.name)),
+            match objects[0].status.get(&im.name).map(String::as_str) {
+                Some("ok") => MaskSource::Keep(run.mask_path(&objects[0].name, &im.name)),
                 other => {
                     left_out.push(LeftOut {
                         view: im.name.clone(),
-                        status: other.unwrap_or(&"not segmented").to_string(),
+                        status: other.unwrap_or("not segmented").to_string(),
                     });
                     continue;
                 }
@@ -310,32 +223,27 @@ fn plan_run(seg_dir: &Path, opts: &ExportOptions) -> Result<Plan> {
         };
         frames.push(FramePlan { image: i, mask });
     }
-    let object_points =
-        |o: &SegmentObject| ply::read_points(&seg_dir.join(format!("{}_points.ply", o.name)));
     let (masks, points) = if opts.background {
         let names: Vec<String> = objects.iter().map(|o| format!("'{}'", o.name)).collect();
         let mut taken = HashSet::new();
         for o in &objects {
-            taken.extend(object_points(o)?.iter().map(|(p, _)| f32_key(*p)));
+            taken.extend(run.object_points(&o.name)?.iter().map(|(p, _)| f32_key(*p)));
         }
-        let rest = scene
+        let rest = run
+            .scene
             .points
             .iter()
-            .filter(|p| !taken.contains(&f32_key(p.xyz)))
-            .map(|p| (p.xyz, p.rgb))
-            .collect();
+            .filter(|p| !taken.contains(&f32_key(p.xyz)));
         (
             format!("background (the reverse of {})", names.join(", ")),
-            rest,
+            rest.map(|p| (p.xyz, p.rgb)).collect(),
         )
     } else {
-        (
-            format!("object '{}'", objects[0].name),
-            object_points(objects[0])?,
-        )
+        let name = &objects[0].name;
+        (format!("object '{name}'"), run.object_points(name)?)
     };
     Ok(Plan {
-        scene,
+        scene: run.scene,
         frames,
         masks: Some(masks),
         points,
@@ -391,13 +299,18 @@ struct FrameOut {
     placed: Placed,
 }
 
-/// A view's name as a path inside the dataset folder (never outside it).
+/// A view's path under the dataset's `images/`, `masks/` and `depth/`: its name, never leading
+/// outside the folder, without a first `images/` (a transforms.json's names often start with it).
 fn inside(name: &str) -> PathBuf {
     let p = normalize(Path::new(name));
-    if p.components().all(|c| matches!(c, Component::Normal(_))) {
+    let p = if p.components().all(|c| matches!(c, Component::Normal(_))) {
         p
     } else {
         PathBuf::from(p.file_name().unwrap_or(p.as_os_str()))
+    };
+    match p.strip_prefix("images") {
+        Ok(rest) if !rest.as_os_str().is_empty() => rest.to_path_buf(),
+        _ => p,
     }
 }
 
