@@ -55,6 +55,7 @@ pub struct CameraPath {
 
 /// Which world a path's matrices are in.
 #[derive(Clone, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // one per file read or written: a box would only add noise
 pub enum PathFrame {
     /// The dataset's own world (its transforms.json's, our scene's).
     Data,
@@ -509,7 +510,7 @@ impl CameraPath {
         let up =
             o.up.try_normalize()
                 .ok_or_else(|| Error::invalid("orbit: up is zero"))?;
-        if !(o.radius.is_finite() && o.radius > 0.0) || !o.elevation.is_finite() {
+        if !(o.radius.is_finite() && o.radius > 0.0 && o.elevation.is_finite()) {
             return Err(Error::invalid(format!(
                 "orbit: radius {} must be positive and elevation {} finite",
                 o.radius, o.elevation
