@@ -53,11 +53,13 @@ fn nerfstudio_sees(jobs: Vec<Value>, tmp: &Path) -> Vec<Value> {
     v["results"].as_array().unwrap().clone()
 }
 
-fn close(a: f64, b: f64, what: &str) {
+/// Asserts nerfstudio's `a` is objnerf's `b` to 1e-5 (relative above 1); returns |a - b|.
+fn close(a: f64, b: f64, what: &str) -> f64 {
     assert!(
         (a - b).abs() <= 1e-5 * b.abs().max(1.0),
         "{what}: nerfstudio {a}, objnerf {b}"
     );
+    (a - b).abs()
 }
 
 fn f64s(v: &Value) -> Vec<f64> {
@@ -188,6 +190,7 @@ fn check_dataset(case: &Case, seen: &Value, mode: &str) {
     assert_eq!(files.len(), case.frames.len(), "{}: frame count", case.name);
     let masks = seen["mask_filenames"].as_array().unwrap();
     let depths = seen["depth_filenames"].as_array().unwrap();
+    let (mut worst_pose, mut worst_k) = (0.0f64, 0.0f64);
     for (i, f) in files.iter().enumerate() {
         let e = case
             .frames
@@ -196,17 +199,17 @@ fn check_dataset(case: &Case, seen: &Value, mode: &str) {
             .unwrap_or_else(|| panic!("{}: nerfstudio lists {f}, not one of ours", case.name));
         for r in 0..3 {
             for c in 0..4 {
-                close(
+                worst_pose = worst_pose.max(close(
                     seen["c2w"][i][r][c].as_f64().unwrap(),
                     e.c2w_gl[r][c],
                     &what("c2w", i),
-                );
+                ));
             }
         }
         let (fx, fy) = e.camera.focal();
         let (cx, cy) = e.camera.principal_point();
         for (k, want) in [("fx", fx), ("fy", fy), ("cx", cx), ("cy", cy)] {
-            close(seen[k][i].as_f64().unwrap(), want, &what(k, i));
+            worst_k = worst_k.max(close(seen[k][i].as_f64().unwrap(), want, &what(k, i)));
         }
         assert_eq!(
             seen["width"][i].as_u64(),
@@ -276,7 +279,7 @@ fn check_dataset(case: &Case, seen: &Value, mode: &str) {
         }
     }
     println!(
-        "{} ({mode}): nerfstudio sees our {} frames, {} masks, {} depth maps, {} points",
+        "{} ({mode}): nerfstudio sees our {} frames, {} masks, {} depth maps, {} points; max |c2w diff| {worst_pose:.1e}, max |intrinsic diff| {worst_k:.1e} px",
         case.name,
         files.len(),
         masks.len(),
@@ -345,16 +348,17 @@ fn dataset_job(case: &Case, mode: &str, save: Option<&Path>) -> Value {
 
 fn check_path(name: &str, ours: &CameraPath, seen: &Value) {
     let n = ours.cameras.len();
+    let mut worst = 0.0f64;
     assert_eq!(seen["c2w"].as_array().unwrap().len(), n, "{name}");
     for (i, c) in ours.cameras.iter().enumerate() {
         let m = c.pose.c2w_opengl();
         for r in 0..3 {
             for k in 0..4 {
-                close(
+                worst = worst.max(close(
                     seen["c2w"][i][r][k].as_f64().unwrap(),
                     m[r][k],
                     &format!("{name} camera {i} c2w"),
-                );
+                ));
             }
         }
         let (f, _) = c.camera.focal();
@@ -373,7 +377,7 @@ fn check_path(name: &str, ours: &CameraPath, seen: &Value) {
         assert_eq!(seen["width"][i].as_u64(), Some(ours.width as u64));
         assert_eq!(seen["height"][i].as_u64(), Some(ours.height as u64));
     }
-    println!("{name}: get_path_from_json sees our {n} cameras");
+    println!("{name}: get_path_from_json sees our {n} cameras; max |c2w diff| {worst:.1e}");
 }
 
 #[test]
