@@ -344,7 +344,7 @@ fn write_frame(scene: &Scene, plan: &FramePlan, root: &Path, factor: u32) -> Res
     let (file, placed) = if factor > 1 {
         let img = image::open(&im.path).map_err(|e| Error::image(&im.path, e))?;
         check_size(&im.path, (img.width(), img.height()), full)?;
-        let small = img.resize_exact(size.0, size.1, imageops::FilterType::Triangle);
+        let small = resize_view(&img, size);
         let file = Path::new("images").join(&as_png);
         save_image_atomic(&root.join(&file), &small)?;
         (file, Placed::Resized)
@@ -379,6 +379,27 @@ fn write_frame(scene: &Scene, plan: &FramePlan, root: &Path, factor: u32) -> Res
         camera,
         placed,
     })
+}
+
+/// A view resized; with alpha, resized premultiplied so that the colour of transparent pixels
+/// (black in NeRF-synthetic files) does not darken the object's edges.
+fn resize_view(img: &DynamicImage, (w, h): (u32, u32)) -> DynamicImage {
+    if !img.color().has_alpha() {
+        return img.resize_exact(w, h, imageops::FilterType::Triangle);
+    }
+    let mut rgba = img.to_rgba32f();
+    for p in rgba.pixels_mut() {
+        let a = p.0[3];
+        p.0[..3].iter_mut().for_each(|c| *c *= a);
+    }
+    let mut small = imageops::resize(&rgba, w, h, imageops::FilterType::Triangle);
+    for p in small.pixels_mut() {
+        let a = p.0[3];
+        p.0[..3]
+            .iter_mut()
+            .for_each(|c| *c = if a > 0.0 { *c / a } else { 0.0 });
+    }
+    DynamicImage::ImageRgba8(DynamicImage::ImageRgba32F(small).to_rgba8())
 }
 
 fn check_size(path: &Path, got: (u32, u32), camera: &Camera) -> Result<()> {
@@ -507,5 +528,35 @@ fn export_scene(plan: &Plan, written: &[FrameOut], root: &Path) -> Scene {
         points,
         depth_scale: 1000.0,
         applied_transform: plan.scene.applied_transform,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transparent_pixels_do_not_darken_edges() {
+        // Left half opaque red, right half transparent black: the edge pixel of the half-size
+        // image is half covered and red, not dark red.
+        let img = image::RgbaImage::from_fn(8, 2, |x, _| {
+            image::Rgba(if x < 3 {
+                [255, 0, 0, 255]
+            } else {
+                [0, 0, 0, 0]
+            })
+        });
+        let small = resize_view(&DynamicImage::ImageRgba8(img), (4, 1)).to_rgba8();
+        let edge = small.get_pixel(1, 0).0;
+        assert!(edge[3] > 60 && edge[3] < 250, "{edge:?}");
+        assert_eq!(&edge[..3], &[255, 0, 0]);
+    }
+
+    #[test]
+    fn names_stay_inside_the_dataset() {
+        assert_eq!(inside("images/a.jpg"), Path::new("a.jpg"));
+        assert_eq!(inside("train/r_0.png"), Path::new("train/r_0.png"));
+        assert_eq!(inside("../../etc/x.png"), Path::new("x.png"));
+        assert_eq!(inside("/abs/y.png"), Path::new("y.png"));
     }
 }
