@@ -12,6 +12,7 @@
 pub mod demo;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod field;
 pub mod mesh;
 pub mod models;

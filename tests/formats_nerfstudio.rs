@@ -260,3 +260,107 @@ fn masks_depth_points_and_applied_transform_round_trip() {
         ));
     }
 }
+
+/// The distortion as nerfstudio holds it: k1, k2, k3, k4, p1, p2.
+fn nerfstudio_distortion(cam: &objnerf::scene::Camera) -> [f64; 6] {
+    let p = &cam.params;
+    match cam.model {
+        CameraModel::SimplePinhole | CameraModel::Pinhole => [0.0; 6],
+        CameraModel::SimpleRadial => [p[3], 0.0, 0.0, 0.0, 0.0, 0.0],
+        CameraModel::Radial => [p[3], p[4], 0.0, 0.0, 0.0, 0.0],
+        CameraModel::OpenCv => [p[4], p[5], 0.0, 0.0, p[6], p[7]],
+        CameraModel::FullOpenCv => [p[4], p[5], p[8], 0.0, p[6], p[7]],
+        CameraModel::OpenCvFisheye => [p[4], p[5], p[6], p[7], 0.0, 0.0],
+        m => panic!("{m:?}"),
+    }
+}
+
+#[test]
+fn colmap_to_transforms_and_back_keeps_poses_and_intrinsics() {
+    use objnerf::scene::formats::colmap::{read_model, write_model, ModelFormat};
+    use objnerf::scene::{Camera, SceneCamera};
+    let tmp = tempfile::tempdir().unwrap();
+    let mut scene = support::tiny_scene(tmp.path());
+    // One camera per view, in models transforms.json names differently.
+    let cams = [
+        (CameraModel::SimpleRadial, vec![9.5, 4.0, 4.125, 0.012]),
+        (
+            CameraModel::FullOpenCv,
+            vec![
+                10.0, 10.5, 3.9, 4.1, 0.01, -0.002, 3e-4, -1e-4, 5e-4, 0.0, 0.0, 0.0,
+            ],
+        ),
+        (CameraModel::Radial, vec![9.75, 4.05, 3.95, -0.01, 0.003]),
+    ];
+    scene.cameras = cams
+        .into_iter()
+        .enumerate()
+        .map(|(i, (m, p))| SceneCamera {
+            id: i as u32 + 4,
+            camera: Camera::new(m, 8, 8, p).unwrap(),
+        })
+        .collect();
+    for (i, im) in scene.images.iter_mut().enumerate() {
+        im.camera = i;
+    }
+    let model = tmp.path().join("sparse/0");
+    std::fs::create_dir_all(&model).unwrap();
+    write_model(&scene, &model, ModelFormat::Binary).unwrap();
+    let colmap = read_model(&model, &tmp.path().join("images")).unwrap();
+    let json = tmp.path().join("transforms.json");
+    nerfstudio::write(&colmap, &json).unwrap();
+    let back = nerfstudio::read(&json).unwrap();
+    for (a, b) in colmap.images.iter().zip(&back.images) {
+        let (m, n) = (a.pose.c2w_opencv(), b.pose.c2w_opencv());
+        for (x, y) in m.iter().flatten().zip(n.iter().flatten()) {
+            assert!((x - y).abs() < 1e-9, "{}: {x} vs {y}", a.name);
+        }
+        for (x, y) in a.pose.qvec().iter().zip(b.pose.qvec()) {
+            assert!((x - y).abs() < 1e-9, "{}: q", a.name);
+        }
+        for (x, y) in a.pose.tvec().iter().zip(b.pose.tvec()) {
+            assert!((x - y).abs() < 1e-9, "{}: t", a.name);
+        }
+        let (c, d) = (colmap.camera_of(a), back.camera_of(b));
+        assert_eq!((c.width, c.height), (d.width, d.height));
+        let pairs = [
+            (c.focal().0, d.focal().0),
+            (c.focal().1, d.focal().1),
+            (c.principal_point().0, d.principal_point().0),
+            (c.principal_point().1, d.principal_point().1),
+        ];
+        for (x, y) in pairs {
+            assert!((x - y).abs() < 1e-9, "{}: {x} vs {y}", a.name);
+        }
+        let (k, l) = (nerfstudio_distortion(c), nerfstudio_distortion(d));
+        for (x, y) in k.iter().zip(l) {
+            assert!((x - y).abs() < 1e-9, "{}: {k:?} vs {l:?}", a.name);
+        }
+        let p = glam::DVec3::new(0.3, -0.2, 1.0);
+        assert!((c.project(p).unwrap() - d.project(p).unwrap()).length() < 1e-9);
+    }
+    // nerfstudio reads camera_model at the top only, every other key per frame when they differ.
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(j["camera_model"], "OPENCV");
+    assert!(j.get("fl_x").is_none());
+    for f in j["frames"].as_array().unwrap() {
+        for key in ["fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "p1", "p2"] {
+            assert!(f.get(key).is_some(), "{key} missing in {f}");
+        }
+    }
+    // A fisheye camera beside perspective ones cannot be one nerfstudio file.
+    let mut mixed = colmap.clone();
+    mixed.cameras[0].camera = Camera::new(
+        CameraModel::OpenCvFisheye,
+        8,
+        8,
+        vec![9.0, 9.0, 4.0, 4.0, 0.01, 0.0, 0.0, 0.0],
+    )
+    .unwrap();
+    let e = nerfstudio::write(&mixed, &tmp.path().join("mixed.json"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mix fisheye and perspective"), "{e}");
+    assert!(!tmp.path().join("mixed.json").exists());
+}

@@ -2,6 +2,7 @@
 //! command parses its arguments into the library's typed options, calls the library, and prints
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
+mod export;
 mod field;
 mod mesh;
 mod models;
@@ -58,6 +59,11 @@ enum Command {
     Demo(run::DemoCmd),
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene(scene::DemoSceneCmd),
+    /// Export a run or a scene for other tools.
+    Export {
+        #[command(subcommand)]
+        to: export::ExportCmd,
+    },
 }
 
 /// Parse the command line, run the command, print an error and exit 1 if it failed.
@@ -89,6 +95,7 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::Extract(cmd) => cmd.run(sub.expect("extract has matches")),
         Command::Demo(cmd) => cmd.run(),
         Command::DemoScene(cmd) => cmd.run(),
+        Command::Export { to } => to.run(),
     }
 }
 

@@ -3,6 +3,7 @@
 //! `Scene::load` finds the format from the path; each reader lives in `formats/`.
 
 pub mod camera;
+pub mod camera_path;
 pub mod formats;
 pub mod frames;
 pub mod info;

@@ -100,18 +100,7 @@ impl Intrinsics {
 
 /// Read a nerfstudio or NeRF-synthetic transforms JSON file.
 pub fn read(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let tf: Transforms = serde_json::from_str(&text).map_err(|e| {
-        // Python's json module writes non-finite floats as bare NaN/Infinity: say so.
-        if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
-            Error::format(
-                path,
-                format!("invalid JSON: {e} (the file holds NaN or Infinity, which JSON does not allow: a non-finite pose or intrinsic?)"),
-            )
-        } else {
-            Error::json(path, e)
-        }
-    })?;
+    let tf: Transforms = read_json_file(path)?;
     let dir = path.parent().unwrap_or(Path::new(""));
     let resolve = |p: &str| dir.join(normalize(Path::new(p)));
     if tf.frames.is_empty() {
@@ -202,6 +191,22 @@ pub fn read(path: &Path) -> Result<Scene> {
     scene.validate(path)?;
     check_files_exist(&scene)?;
     Ok(scene)
+}
+
+/// Parse a JSON file written by nerfstudio (or for it) into `T`.
+pub(crate) fn read_json_file<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| {
+        // Python's json module writes non-finite floats as bare NaN/Infinity: say so.
+        if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
+            Error::format(
+                path,
+                format!("invalid JSON: {e} (the file holds NaN or Infinity, which JSON does not allow: a non-finite pose or number?)"),
+            )
+        } else {
+            Error::json(path, e)
+        }
+    })
 }
 
 fn all_or_none(path: &Path, key: &str, count: usize, total: usize) -> Result<()> {
@@ -337,10 +342,8 @@ fn camera_keys(cam: &Camera) -> std::result::Result<Intrinsics, String> {
         ..Intrinsics::default()
     };
     let model = match cam.model {
-        CameraModel::SimplePinhole => {
-            k.fl_y = None;
-            "SIMPLE_PINHOLE"
-        }
+        // fl_y too: nerfstudio's parser needs it for every model.
+        CameraModel::SimplePinhole => "SIMPLE_PINHOLE",
         CameraModel::Pinhole => "PINHOLE",
         CameraModel::SimpleRadial | CameraModel::Radial => {
             k.k1 = Some(p[3]);
@@ -421,6 +424,7 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
         )));
     }
     let shared = scene.cameras.len() == 1;
+    let top_model = top_camera_model(&keys).map_err(|m| Error::format(path, m))?;
     let frames = scene
         .images
         .iter()
@@ -453,7 +457,10 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
         intrinsics: if shared {
             keys[0].clone()
         } else {
-            Intrinsics::default()
+            Intrinsics {
+                camera_model: Some(top_model),
+                ..Intrinsics::default()
+            }
         },
         applied_transform: scene
             .applied_transform
@@ -466,6 +473,26 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
         w.write_all(json.as_bytes())?;
         w.write_all(b"\n")
     })
+}
+
+/// The top-level `camera_model`, the only one nerfstudio reads (frames keep their own for us):
+/// the cameras' shared model, else OPENCV when all are perspective (its distortion terms, zero or
+/// not, cover the others).
+fn top_camera_model(keys: &[Intrinsics]) -> std::result::Result<String, String> {
+    let models: Vec<&str> = keys
+        .iter()
+        .filter_map(|k| k.camera_model.as_deref())
+        .collect();
+    if models.windows(2).all(|w| w[0] == w[1]) {
+        return Ok(models.first().unwrap_or(&"PINHOLE").to_string());
+    }
+    if models.contains(&"OPENCV_FISHEYE") {
+        return Err(format!(
+            "the cameras mix fisheye and perspective models ({}): nerfstudio reads one camera type per transforms.json",
+            models.join(", ")
+        ));
+    }
+    Ok("OPENCV".into())
 }
 
 /// How a json in `dir` refers to `file`: `name` when it still names the same file from `dir`
