@@ -87,7 +87,7 @@ fn resuming_from_a_saved_model_continues_exactly() {
     let m = io::load(&path).unwrap();
     assert_eq!(m.field.grid.data, half.field.grid.data);
     let mut resumed = field::Trainer::from_model(m, small_cfg(20));
-    let rays = field::rays::RaySet::build(&views, resumed.field.box_min, resumed.field.box_max);
+    let rays = field::rays::RaySet::build(&views, &resumed.field);
     for _ in 0..10 {
         resumed.train_step(&views, &rays);
     }

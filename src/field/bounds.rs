@@ -144,17 +144,28 @@ pub fn choose_voxel(
         .collect();
     foot.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (median, dist, focal) = foot[foot.len() / 2];
-    let mut voxel = median / per_pixel;
-    let e = hi - lo;
+    let voxel = median / per_pixel;
+    let why = format!(
+        "one pixel at the median camera distance {dist:.3} (focal {focal:.0} px) covers {median:.5} world units; {per_pixel} voxel(s) per pixel -> voxel {voxel:.5}"
+    );
+    fit_budget(hi - lo, voxel, why, bytes_per_vertex, budget)
+}
+
+/// Enlarge `voxel` until a grid over `extent` with `bytes_per_vertex` fits in `budget` bytes;
+/// `why` is extended with the reason when it had to.
+pub fn fit_budget(
+    extent: Vec3,
+    mut voxel: f32,
+    mut why: String,
+    bytes_per_vertex: usize,
+    budget: usize,
+) -> (f32, String) {
     let count = |vx: f32| -> usize {
-        [e.x, e.y, e.z]
+        [extent.x, extent.y, extent.z]
             .iter()
             .map(|l| (l / vx).ceil() as usize + 1)
             .product()
     };
-    let mut why = format!(
-        "one pixel at the median camera distance {dist:.3} (focal {focal:.0} px) covers {median:.5} world units; {per_pixel} voxel(s) per pixel -> voxel {voxel:.5}"
-    );
     let want = count(voxel) * bytes_per_vertex;
     if want > budget {
         voxel *= (want as f32 / budget as f32).cbrt();

@@ -131,7 +131,7 @@ pub fn fit_scene(
         }
         Some(m) => {
             let t = Trainer::from_model(m, cfg);
-            let rays = RaySet::build(&views, t.field.box_min, t.field.box_max);
+            let rays = RaySet::build(&views, &t.field);
             (t, rays, None)
         }
     };

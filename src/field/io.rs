@@ -17,6 +17,7 @@
 //! array ends, so a truncated or corrupted file is an error that says what is wrong.
 
 use super::model::{sh_coeffs, Field, FieldConfig};
+use super::space::Space;
 use super::train::{TrainConfig, Trainer};
 use crate::error::{Error, Result};
 use crate::util::digest::hex;
@@ -26,7 +27,8 @@ use sha2::{Digest, Sha256};
 use std::path::Path;
 
 pub const MAGIC: &[u8; 8] = b"OBJNFLD\n";
-pub const VERSION: u32 = 1;
+/// 2: the header records the field's [`Space`] (version 1 files are box-space fields).
+pub const VERSION: u32 = 2;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ArrayInfo {
@@ -41,6 +43,9 @@ pub struct Header {
     pub format: String,
     pub version: u32,
     pub config: FieldConfig,
+    /// Where the grid lives (absent in version 1: a box in world coordinates).
+    #[serde(default)]
+    pub space: Space,
     pub box_min: [f32; 3],
     pub box_max: [f32; 3],
     pub voxel: f32,
@@ -224,6 +229,7 @@ pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
         format: "objnerf-field".into(),
         version: VERSION,
         config: f.config.clone(),
+        space: f.space.clone(),
         box_min: f.box_min.to_array(),
         box_max: f.box_max.to_array(),
         voxel: f.voxel,
@@ -313,6 +319,7 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
         Vec3::from_array(h.box_max),
         h.dims,
     );
+    field.space = h.space.clone();
     field.voxel = h.voxel;
     field.grid.data = grid;
     field.occupancy = occupancy;

@@ -45,10 +45,12 @@ pub mod fit;
 pub mod grid;
 pub mod holdout;
 pub mod io;
+pub mod layout;
 pub mod model;
 pub mod rays;
 pub mod render;
 pub mod session;
+pub mod space;
 pub mod train;
 pub mod view;
 
@@ -56,5 +58,6 @@ pub use fit::{fit_scene, model_notes, DepthMode, FitOptions, Fitted, TrainReport
 pub use model::{Field, FieldConfig};
 pub use render::RenderOptions;
 pub use session::{prepare, run, SetupConfig, StopRule};
+pub use space::Space;
 pub use train::{TrainConfig, Trainer};
 pub use view::{load_views, MaskSource, RayCamera, View};

@@ -8,6 +8,7 @@
 //! meaning when the grid is refined.
 
 use super::grid::Grid;
+use super::space::Space;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -25,10 +26,13 @@ pub struct FieldConfig {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Field {
     pub config: FieldConfig,
-    /// World-space box corners; grid vertex (0,0,0) sits at `box_min`.
+    /// Where the grid lives: the box, voxel and densities are in this space's coordinates (the
+    /// world itself for an object's [`Space::Box`]).
+    pub space: Space,
+    /// Box corners in space coordinates; grid vertex (0,0,0) sits at `box_min`.
     pub box_min: Vec3,
     pub box_max: Vec3,
-    /// World length of one voxel of the current grid (cubic voxels).
+    /// Length of one voxel of the current grid in space coordinates (cubic voxels).
     pub voxel: f32,
     /// Channels: [raw density, SH red (K), SH green (K), SH blue (K)], K = (degree + 1)^2.
     pub grid: Grid,
@@ -100,6 +104,7 @@ impl Field {
         let voxel = (box_max - box_min).max_element() / (dims.iter().max().unwrap() - 1) as f32;
         let mut f = Field {
             config,
+            space: Space::Box,
             box_min,
             box_max,
             voxel,
@@ -225,13 +230,17 @@ impl Field {
         self.rebuild_blocks();
     }
 
-    /// World point to grid units.
+    /// World point to grid units (points a space cannot map, behind an NDC camera's near plane,
+    /// land outside the grid).
     #[inline]
     pub fn to_grid(&self, p: Vec3) -> Vec3 {
-        (p - self.box_min) / self.voxel
+        match self.space.map(p) {
+            Some(q) => (q - self.box_min) / self.voxel,
+            None => Vec3::splat(-1.0),
+        }
     }
 
-    /// The cell-centre world position of a cell base.
+    /// The cell-centre position of a cell base, in space coordinates (the world for a box).
     pub fn cell_center(&self, b: [usize; 3]) -> Vec3 {
         self.box_min + (Vec3::new(b[0] as f32, b[1] as f32, b[2] as f32) + 0.5) * self.voxel
     }
@@ -255,7 +264,7 @@ impl Field {
             for y in 0..dims[1] - 1 {
                 for x in 0..dims[0] - 1 {
                     let c = self.cell_center([x, y, z]);
-                    let g = old.to_grid(c);
+                    let g = (c - old.box_min) / old.voxel;
                     let (b, _) = old.grid.locate([g.x, g.y, g.z]);
                     if old.occupied(old.cell_index(b)) {
                         let ci = self.cell_index([x, y, z]);

@@ -1,9 +1,8 @@
 //! Training rays: the (view, pixel) pairs whose ray meets the object's box; the rest are pruned
 //! (an order of magnitude fewer rays for an object that fills a tenth of the views).
 
-use super::render::ray_box;
+use super::model::Field;
 use super::view::View;
-use glam::Vec3;
 use rayon::prelude::*;
 
 /// Training rays: (view, pixel) pairs whose ray meets the box.
@@ -17,7 +16,10 @@ pub struct RaySet {
 }
 
 impl RaySet {
-    pub fn build(views: &[View], lo: Vec3, hi: Vec3) -> RaySet {
+    /// The rays of `views` that meet the field's box (in its space) and carry a loss (a view's
+    /// `loss_mask`: a removed object's pixels carry none).
+    pub fn build(views: &[View], field: &Field) -> RaySet {
+        let (lo, hi) = (field.box_min, field.box_max);
         let per: Vec<Vec<(u32, u32)>> = views
             .par_iter()
             .enumerate()
@@ -25,7 +27,8 @@ impl RaySet {
                 (0..v.width * v.height)
                     .filter(|&p| {
                         let (o, d) = v.ray(p);
-                        ray_box(o, d, lo, hi).is_some()
+                        v.loss_mask.as_ref().is_none_or(|m| m[p as usize])
+                            && field.space.ray_hits(o, d, lo, hi)
                     })
                     .map(|p| (vi as u32, p))
                     .collect()

@@ -14,6 +14,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::model::{sh_basis, sigmoid, softplus, Field, BLOCK};
+use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -81,7 +82,8 @@ pub fn ray_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
 }
 
 /// March one ray (unit world direction `d`), composite on `bg`, and record the kept samples.
-/// `jitter` in [0, 1) offsets the first sample by that fraction of a step.
+/// `jitter` in [0, 1) offsets the first sample by that fraction of a step. The samples' `t` is
+/// the distance along the world ray, in every [`Space`](super::space::Space).
 pub fn forward(
     f: &Field,
     opt: &RenderOptions,
@@ -92,94 +94,164 @@ pub fn forward(
     samples: &mut Vec<Sample>,
 ) -> RayOut {
     samples.clear();
-    let mut out = RayOut::default();
-    let Some((tn, tf)) = ray_box(o, d, f.box_min, f.box_max) else {
-        out.rgb = bg;
-        return out;
-    };
-    let k = f.sh_k();
-    let mut basis = [0f32; 9];
-    sh_basis(f.config.sh_degree, d, &mut basis);
-    let step_w = opt.step * f.voxel;
-    let delta = step_w / f.config.base_voxel;
-    let shift = f.shift();
-    let og = f.to_grid(o);
-    let dg = d / f.voxel;
-    let dims = f.grid.dims;
-    let ch = f.grid.channels;
-    let mut trans = 1.0f32;
-    let mut feat = [0f32; 28];
-    let t0 = tn + jitter * step_w;
-    // Sample k sits at t0 + k * step (not an accumulated sum), so skipping ahead lands on exactly
-    // the samples a dense march would take.
-    let mut ks = 0u32;
-    let mut t = t0;
-    let bd = f.block_dims;
-    let inv_dg = dg.recip();
-    while t < tf {
-        let p = og + dg * t;
-        let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
-        let bb = [b[0] / BLOCK, b[1] / BLOCK, b[2] / BLOCK];
-        if !f.blocks[bb[0] + bd[0] * (bb[1] + bd[1] * bb[2])] {
-            // Jump to the first sample of the lattice t0 + k * step past this block's exit, so
-            // the samples taken are the same as without skipping.
-            let mut t_exit = f32::MAX;
-            for a in 0..3 {
-                let lo = (bb[a] * BLOCK) as f32;
-                let hi = ((bb[a] + 1) * BLOCK).min(dims[a] - 1) as f32;
-                let bound = if inv_dg[a] > 0.0 { hi } else { lo };
-                let te = (bound - og[a]) * inv_dg[a];
-                if te.is_finite() {
-                    t_exit = t_exit.min(te);
+    let mut m = Marcher::new(f, opt, d, samples);
+    match f.space.ray_path(o, d, f.box_min, f.box_max) {
+        None => {}
+        Some(RayPath::Line { o, d, s0, s1, t }) => m.line(o, d, s0, s1, t, jitter),
+        Some(RayPath::Contracted {
+            o,
+            d,
+            t0,
+            center,
+            radius,
+        }) => {
+            let step = opt.step * f.voxel;
+            for (t, x) in ContractedSteps::new(o, d, t0, center, radius, step, jitter) {
+                let p = (x - f.box_min) / f.voxel;
+                let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
+                if !m.block_occupied(b) {
+                    continue;
                 }
-            }
-            let kn = ((t_exit - t0) / step_w).ceil() as u32;
-            ks = kn.max(ks + 1);
-            t = t0 + ks as f32 * step_w;
-            continue;
-        }
-        let cell = f.cell_index(b);
-        if f.occupied(cell) {
-            let kc = f.grid.corners_of(b, fr);
-            let raw = f.grid.interp_channel(&kc, 0) + shift;
-            let sp = softplus(raw);
-            let alpha = 1.0 - (-sp * delta).exp();
-            if alpha >= opt.alpha_thresh {
-                f.grid.interp_range(&kc, 1, &mut feat[..ch - 1]);
-                let mut rgb = [0f32; 3];
-                for (c, v) in rgb.iter_mut().enumerate() {
-                    let coef = &feat[c * k..(c + 1) * k];
-                    let s: f32 = coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum();
-                    *v = sigmoid(s);
-                }
-                let w = trans * alpha;
-                for c in 0..3 {
-                    out.rgb[c] += w * rgb[c];
-                }
-                out.depth += w * t;
-                samples.push(Sample {
-                    base: (b[0] + dims[0] * (b[1] + dims[1] * b[2])) as u32,
-                    frac: fr,
-                    t,
-                    alpha,
-                    trans,
-                    rgb,
-                    dsp: sigmoid(raw),
-                });
-                trans *= 1.0 - alpha;
-                if trans < opt.term_thresh {
+                if !m.visit(b, fr, t) {
                     break;
                 }
             }
         }
-        ks += 1;
-        t = t0 + ks as f32 * step_w;
     }
-    out.alpha = 1.0 - trans;
-    for c in 0..3 {
-        out.rgb[c] += trans * bg[c];
+    m.finish(bg)
+}
+
+/// The state of one ray's march: the field's constants, the transmittance so far and what has
+/// been composited.
+struct Marcher<'a> {
+    f: &'a Field,
+    opt: &'a RenderOptions,
+    basis: [f32; 9],
+    /// Sample spacing in finest voxels (alpha = 1 - exp(-density * delta)).
+    delta: f32,
+    shift: f32,
+    trans: f32,
+    out: RayOut,
+    feat: [f32; 28],
+    samples: &'a mut Vec<Sample>,
+}
+
+impl<'a> Marcher<'a> {
+    fn new(f: &'a Field, opt: &'a RenderOptions, d: Vec3, samples: &'a mut Vec<Sample>) -> Self {
+        let mut basis = [0f32; 9];
+        sh_basis(f.config.sh_degree, d, &mut basis);
+        Marcher {
+            f,
+            opt,
+            basis,
+            delta: opt.step * f.voxel / f.config.base_voxel,
+            shift: f.shift(),
+            trans: 1.0,
+            out: RayOut::default(),
+            feat: [0f32; 28],
+            samples,
+        }
     }
-    out
+
+    /// Whether the block of cell base `b` holds any occupied cell.
+    #[inline]
+    fn block_occupied(&self, b: [usize; 3]) -> bool {
+        let bd = self.f.block_dims;
+        self.f.blocks[b[0] / BLOCK + bd[0] * (b[1] / BLOCK + bd[1] * (b[2] / BLOCK))]
+    }
+
+    /// A straight path in space: samples every `step` voxels from `s0 + jitter * step`; empty
+    /// blocks are jumped over to the next sample of the same lattice.
+    fn line(&mut self, o: Vec3, d: Vec3, s0: f32, s1: f32, depth: LineDepth, jitter: f32) {
+        let f = self.f;
+        let step_w = self.opt.step * f.voxel;
+        let og = (o - f.box_min) / f.voxel;
+        let dg = d / f.voxel;
+        let dims = f.grid.dims;
+        let t0 = s0 + jitter * step_w;
+        // Sample k sits at t0 + k * step (not an accumulated sum), so skipping ahead lands on
+        // exactly the samples a dense march would take.
+        let mut ks = 0u32;
+        let mut t = t0;
+        let inv_dg = dg.recip();
+        while t < s1 {
+            let p = og + dg * t;
+            let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
+            if !self.block_occupied(b) {
+                // Jump to the first sample of the lattice t0 + k * step past this block's exit,
+                // so the samples taken are the same as without skipping.
+                let bb = [b[0] / BLOCK, b[1] / BLOCK, b[2] / BLOCK];
+                let mut t_exit = f32::MAX;
+                for a in 0..3 {
+                    let lo = (bb[a] * BLOCK) as f32;
+                    let hi = ((bb[a] + 1) * BLOCK).min(dims[a] - 1) as f32;
+                    let bound = if inv_dg[a] > 0.0 { hi } else { lo };
+                    let te = (bound - og[a]) * inv_dg[a];
+                    if te.is_finite() {
+                        t_exit = t_exit.min(te);
+                    }
+                }
+                let kn = ((t_exit - t0) / step_w).ceil() as u32;
+                ks = kn.max(ks + 1);
+                t = t0 + ks as f32 * step_w;
+                continue;
+            }
+            if !self.visit(b, fr, depth.world_t(t)) {
+                break;
+            }
+            ks += 1;
+            t = t0 + ks as f32 * step_w;
+        }
+    }
+
+    /// Shade the sample at cell `b`, fraction `fr`, world distance `t`: composite and record it
+    /// when it is occupied and not transparent. False once the ray is opaque (stop marching).
+    #[inline]
+    fn visit(&mut self, b: [usize; 3], fr: [f32; 3], t: f32) -> bool {
+        let f = self.f;
+        if !f.occupied(f.cell_index(b)) {
+            return true;
+        }
+        let kc = f.grid.corners_of(b, fr);
+        let raw = f.grid.interp_channel(&kc, 0) + self.shift;
+        let alpha = 1.0 - (-softplus(raw) * self.delta).exp();
+        if alpha < self.opt.alpha_thresh {
+            return true;
+        }
+        let (k, ch) = (f.sh_k(), f.grid.channels);
+        f.grid.interp_range(&kc, 1, &mut self.feat[..ch - 1]);
+        let mut rgb = [0f32; 3];
+        for (c, v) in rgb.iter_mut().enumerate() {
+            let coef = &self.feat[c * k..(c + 1) * k];
+            let s: f32 = coef.iter().zip(&self.basis[..k]).map(|(a, b)| a * b).sum();
+            *v = sigmoid(s);
+        }
+        let w = self.trans * alpha;
+        for c in 0..3 {
+            self.out.rgb[c] += w * rgb[c];
+        }
+        self.out.depth += w * t;
+        let dims = f.grid.dims;
+        self.samples.push(Sample {
+            base: (b[0] + dims[0] * (b[1] + dims[1] * b[2])) as u32,
+            frac: fr,
+            t,
+            alpha,
+            trans: self.trans,
+            rgb,
+            dsp: sigmoid(raw),
+        });
+        self.trans *= 1.0 - alpha;
+        self.trans >= self.opt.term_thresh
+    }
+
+    fn finish(mut self, bg: [f32; 3]) -> RayOut {
+        self.out.alpha = 1.0 - self.trans;
+        for c in 0..3 {
+            self.out.rgb[c] += self.trans * bg[c];
+        }
+        self.out
+    }
 }
 
 /// Backward of [`forward`] for upstream gradients `g_rgb` (dL/dC), `g_alpha` (dL/dA),

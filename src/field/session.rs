@@ -2,9 +2,11 @@
 //! memory budget) → carved occupancy → rays pruned to the box → a [`Trainer`] run until the step
 //! count, a time budget or a PSNR plateau.
 
-use super::bounds::{choose_voxel, hull_box, visual_hull};
+use super::bounds::{choose_voxel, fit_budget, hull_box, visual_hull};
+use super::layout::SpaceSetup;
 use super::model::{Field, FieldConfig};
 use super::rays::RaySet;
+use super::space::Space;
 use super::train::{stage_dims, StepStats, TrainConfig, Trainer};
 use super::view::View;
 use crate::error::Result;
@@ -24,6 +26,13 @@ pub struct SetupConfig {
     pub alpha_init: f32,
 }
 
+impl SetupConfig {
+    /// Grid bytes per vertex: parameters, gradient, Adam m and v, plus the touch stamp.
+    pub fn bytes_per_vertex(&self) -> usize {
+        (1 + 3 * super::model::sh_coeffs(self.sh_degree)) * 16 + 4
+    }
+}
+
 impl Default for SetupConfig {
     fn default() -> Self {
         SetupConfig {
@@ -39,6 +48,8 @@ impl Default for SetupConfig {
 /// What the setup chose, for the log and the benchmark JSON.
 #[derive(Clone, Debug, Serialize)]
 pub struct SetupReport {
+    /// Where the grid lives; its box and voxel are in this space's coordinates.
+    pub space: Space,
     pub box_min: [f32; 3],
     pub box_max: [f32; 3],
     pub voxel: f32,
@@ -52,17 +63,16 @@ pub struct SetupReport {
     pub first_stage_cells: usize,
 }
 
-/// Build the trainer for `views`.
+/// Build the trainer for an object's `views`: the box from the masks' visual hull, occupancy
+/// carved by it, rays that miss the box pruned.
 pub fn prepare(
     views: &[View],
     setup: &SetupConfig,
     cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     let (lo, hi) = hull_box(views, setup.pad)?;
-    let channels = 1 + 3 * super::model::sh_coeffs(setup.sh_degree);
-    // params, gradient, Adam m and v, plus the stamp
-    let bytes_per_vertex = channels * 16 + 4;
-    let (voxel, mut why) = choose_voxel(
+    let bytes_per_vertex = setup.bytes_per_vertex();
+    let (voxel, why) = choose_voxel(
         views,
         lo,
         hi,
@@ -70,38 +80,9 @@ pub fn prepare(
         bytes_per_vertex,
         setup.memory_budget,
     );
-    // Final cells per axis rounded up to a multiple of 4 so coarse stages nest exactly.
-    let e = hi - lo;
-    let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
-    why += &format!(
-        "; box {:.3} x {:.3} x {:.3} -> {} x {} x {} vertices ({:.1} M, {} MiB with optimiser state)",
-        e.x,
-        e.y,
-        e.z,
-        final_dims[0],
-        final_dims[1],
-        final_dims[2],
-        final_dims.iter().product::<usize>() as f64 / 1e6,
-        (final_dims.iter().product::<usize>() * bytes_per_vertex) >> 20
-    );
-    let hi = lo
-        + Vec3::new(
-            (final_dims[0] - 1) as f32,
-            (final_dims[1] - 1) as f32,
-            (final_dims[2] - 1) as f32,
-        ) * voxel;
-    let first_scale = cfg.stages.first().map(|s| s.1).unwrap_or(1.0);
-    let dims0 = stage_dims(final_dims, first_scale);
-    let mut field = Field::new(
-        FieldConfig {
-            sh_degree: setup.sh_degree,
-            alpha_init: setup.alpha_init,
-            base_voxel: voxel,
-        },
-        lo,
-        hi,
-        dims0,
-    );
+    let plan = GridPlan::new(lo, hi, voxel, why, bytes_per_vertex);
+    let mut field = plan.field(setup, Space::Box, &cfg);
+    let dims0 = field.grid.dims;
     let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
     let keep = visual_hull(views, lo, field.box_max, cells);
     for (c, &k) in keep.iter().enumerate() {
@@ -109,21 +90,119 @@ pub fn prepare(
     }
     field.rebuild_blocks();
     let hull_cells = keep.iter().filter(|&&k| k).count();
-    let rays = RaySet::build(views, lo, field.box_max);
-    let report = SetupReport {
-        box_min: lo.to_array(),
-        box_max: field.box_max.to_array(),
+    let rays = RaySet::build(views, &field);
+    let report = plan.report(&field, &rays, hull_cells);
+    Ok((Trainer::new(field, plan.final_dims, cfg), rays, report))
+}
+
+/// Build the trainer for a scene field in `space` (box in space coordinates, the pixel
+/// footprint there): every cell occupied until pruned, rays that carry no loss (alpha 0: a
+/// removed object's pixels) left out.
+pub fn prepare_scene(
+    views: &[View],
+    space: &SpaceSetup,
+    setup: &SetupConfig,
+    cfg: TrainConfig,
+) -> Result<(Trainer, RaySet, SetupReport)> {
+    let bytes_per_vertex = setup.bytes_per_vertex();
+    let voxel = space.pixel_footprint / setup.voxels_per_pixel;
+    let why = format!(
+        "{}; one pixel covers {:.5} space units; {} voxel(s) per pixel -> voxel {voxel:.5}",
+        space.why, space.pixel_footprint, setup.voxels_per_pixel
+    );
+    let (voxel, why) = fit_budget(
+        space.box_max - space.box_min,
         voxel,
-        final_dims,
-        final_vertices: final_dims.iter().product(),
         why,
-        rays_total: rays.total,
-        rays_kept: rays.rays.len(),
-        pruned_fraction: rays.pruned_fraction(),
-        hull_cells,
-        first_stage_cells: field.num_cells(),
-    };
-    Ok((Trainer::new(field, final_dims, cfg), rays, report))
+        bytes_per_vertex,
+        setup.memory_budget,
+    );
+    let plan = GridPlan::new(space.box_min, space.box_max, voxel, why, bytes_per_vertex);
+    let field = plan.field(setup, space.space.clone(), &cfg);
+    let rays = RaySet::build(views, &field);
+    if rays.rays.is_empty() {
+        return Err(crate::error::Error::invalid(
+            "no pixel is left to train the scene field on (every view is covered by removed objects)",
+        ));
+    }
+    let report = plan.report(&field, &rays, field.num_cells());
+    Ok((Trainer::new(field, plan.final_dims, cfg), rays, report))
+}
+
+/// A grid over a box: its finest dims (cells a multiple of 4 so coarse stages nest exactly) and
+/// the box trimmed to them.
+struct GridPlan {
+    lo: Vec3,
+    hi: Vec3,
+    voxel: f32,
+    final_dims: [usize; 3],
+    why: String,
+}
+
+impl GridPlan {
+    fn new(lo: Vec3, hi: Vec3, voxel: f32, mut why: String, bytes_per_vertex: usize) -> Self {
+        let e = hi - lo;
+        let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
+        let vertices: usize = final_dims.iter().product();
+        why += &format!(
+            "; box {:.3} x {:.3} x {:.3} -> {} x {} x {} vertices ({:.1} M, {} MiB with optimiser state)",
+            e.x,
+            e.y,
+            e.z,
+            final_dims[0],
+            final_dims[1],
+            final_dims[2],
+            vertices as f64 / 1e6,
+            (vertices * bytes_per_vertex) >> 20
+        );
+        let hi = lo
+            + Vec3::new(
+                (final_dims[0] - 1) as f32,
+                (final_dims[1] - 1) as f32,
+                (final_dims[2] - 1) as f32,
+            ) * voxel;
+        GridPlan {
+            lo,
+            hi,
+            voxel,
+            final_dims,
+            why,
+        }
+    }
+
+    /// The field at the first coarse-to-fine stage.
+    fn field(&self, setup: &SetupConfig, space: Space, cfg: &TrainConfig) -> Field {
+        let first_scale = cfg.stages.first().map(|s| s.1).unwrap_or(1.0);
+        let mut f = Field::new(
+            FieldConfig {
+                sh_degree: setup.sh_degree,
+                alpha_init: setup.alpha_init,
+                base_voxel: self.voxel,
+            },
+            self.lo,
+            self.hi,
+            stage_dims(self.final_dims, first_scale),
+        );
+        f.space = space;
+        f
+    }
+
+    fn report(&self, field: &Field, rays: &RaySet, hull_cells: usize) -> SetupReport {
+        SetupReport {
+            space: field.space.clone(),
+            box_min: self.lo.to_array(),
+            box_max: field.box_max.to_array(),
+            voxel: self.voxel,
+            final_dims: self.final_dims,
+            final_vertices: self.final_dims.iter().product(),
+            why: self.why.clone(),
+            rays_total: rays.total,
+            rays_kept: rays.rays.len(),
+            pruned_fraction: rays.pruned_fraction(),
+            hull_cells,
+            first_stage_cells: field.num_cells(),
+        }
+    }
 }
 
 /// When to stop.

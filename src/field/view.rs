@@ -193,6 +193,9 @@ pub struct View {
     pub rgba: Vec<[u8; 4]>,
     /// Depth targets per pixel as distance along the unit ray (0 = none), when supervised.
     pub depth: Option<Vec<f32>>,
+    /// Pixels that carry a loss (None: all): a scene field leaves out what removed objects
+    /// covered.
+    pub loss_mask: Option<Vec<bool>>,
 }
 
 impl View {
@@ -201,6 +204,7 @@ impl View {
             cam: RayCamera::new(name, camera, pose),
             rgba,
             depth: None,
+            loss_mask: None,
         }
     }
 }

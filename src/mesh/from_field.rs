@@ -145,6 +145,12 @@ pub fn mesh_field(
     name: &str,
     opts: &FieldMeshOptions,
 ) -> Result<(Mesh, FieldMeshReport)> {
+    if field.space != crate::field::Space::Box {
+        return Err(Error::invalid(format!(
+            "this is a scene field in {} space: meshes are made from object fields (box space)",
+            field.space.name()
+        )));
+    }
     let iso = iso_raw(field, opts.iso_alpha)?;
     let extent = field.box_max - field.box_min;
     let (spacing, inner) = match opts.resolution {
