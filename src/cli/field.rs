@@ -2,9 +2,11 @@
 
 use super::progress::Bars;
 use clap::Args;
+use objnerf::field::holdout::is_held_out;
 use objnerf::field::io::{self, IDENTITY};
 use objnerf::field::{
-    eval::evaluate_model, fit_scene, model_notes, DepthMode, FitOptions, MaskSource, SetupConfig,
+    eval::evaluate_model, fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind,
+    FitOptions, MaskSource, SceneFitOptions, SetupConfig, SpaceChoice,
 };
 use objnerf::render::render_scene_views;
 use objnerf::util::Progress;
@@ -17,8 +19,14 @@ pub struct TrainCmd {
     scene: PathBuf,
     /// The object's masks: 'alpha' (the images' alpha), a folder of masks, 'scene' (each
     /// view's mask_path) or 'truth:OBJECT' (the demo scene's true masks).
-    #[arg(long)]
-    masks: String,
+    #[arg(long, required_unless_present = "scene_field")]
+    masks: Option<String>,
+    /// Train a field of the whole scene instead of one object (no masks).
+    #[arg(long, conflicts_with = "masks")]
+    scene_field: bool,
+    /// The scene field's space: auto (from the capture's layout), box, unbounded or forward.
+    #[arg(long, default_value_t = SpaceChoice::default(), requires = "scene_field")]
+    space: SpaceChoice,
     /// Where to write the model (.objf).
     #[arg(long)]
     out: PathBuf,
@@ -45,12 +53,15 @@ pub struct TrainCmd {
     /// Continue training this model.
     #[arg(long)]
     resume: Option<PathBuf>,
+    /// Leave every N-th view out of training (views N/2, N/2 + N, ...; 0: none), for `eval
+    /// --hold-out-every N`.
+    #[arg(long, default_value_t = 0)]
+    hold_out_every: usize,
 }
 
 impl TrainCmd {
     pub fn run(self) -> Result<()> {
         let scene = Scene::load(&self.scene)?;
-        let masks = MaskSource::parse(&self.masks, &self.scene)?;
         let opts = FitOptions {
             downscale: self.downscale,
             time_budget: self.time_budget,
@@ -62,25 +73,53 @@ impl TrainCmd {
                 memory_budget: self.memory_mb << 20,
                 ..Default::default()
             },
-            exclude_views: vec![],
+            exclude_views: scene
+                .images
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| is_held_out(*i, self.hold_out_every))
+                .map(|(_, im)| im.name.clone())
+                .collect(),
         };
-        let resume = self.resume.as_deref().map(io::load).transpose()?;
         let bars = Bars::default();
         bars.begin("train", opts.steps as u64);
-        let fitted = fit_scene(&scene, &masks, &opts, resume, &mut |s| {
-            bars.advance(s.step as u64, s.detail())
-        })?;
+        let mut progress =
+            |s: &objnerf::field::train::StepStats| bars.advance(s.step as u64, s.detail());
+        let fitted = match &self.masks {
+            Some(masks) => {
+                let masks = MaskSource::parse(masks, &self.scene)?;
+                let resume = self.resume.as_deref().map(io::load).transpose()?;
+                fit_scene(&scene, &masks, &opts, resume, &mut progress)?
+            }
+            None => {
+                let scene_opts = SceneFitOptions {
+                    space: self.space,
+                    fit: opts.clone(),
+                    ..Default::default()
+                };
+                fit_scene_field(&scene, &scene_opts, &mut progress)?
+            }
+        };
         bars.end();
-        let notes = model_notes(&scene, &opts, &fitted.report);
+        let kind = match self.masks {
+            Some(_) => FieldKind::Object,
+            None => FieldKind::Scene,
+        };
+        let notes = model_notes(kind, &scene, &opts, &fitted.report);
         io::save(&self.out, &fitted.trainer.parts(IDENTITY, notes))?;
         let r = &fitted.report;
         if let Some(s) = &r.setup {
             eprintln!(
-                "box {:?}..{:?} (the masks' visual hull); grid {:?} ({} vertices) because {}",
-                s.box_min, s.box_max, s.final_dims, s.final_vertices, s.why
+                "{} space, box {:?}..{:?}; grid {:?} ({} vertices) because {}",
+                s.space.name(),
+                s.box_min,
+                s.box_max,
+                s.final_dims,
+                s.final_vertices,
+                s.why
             );
             eprintln!(
-                "rays: {} of {} kept ({:.1}% pruned: they miss the object's box)",
+                "rays: {} of {} kept ({:.1}% pruned: they miss the box or carry no loss)",
                 s.rays_kept,
                 s.rays_total,
                 100.0 * s.pruned_fraction
@@ -128,10 +167,15 @@ pub struct EvalCmd {
     model: PathBuf,
     #[arg(long)]
     scene: PathBuf,
-    #[arg(long, default_value = "alpha")]
-    masks: String,
+    /// The truth's masks, as `train --masks` takes them (default: the images' alpha for an
+    /// object field, every pixel for a scene field).
+    #[arg(long)]
+    masks: Option<String>,
     #[arg(long)]
     downscale: Option<u32>,
+    /// Score only the views `train --hold-out-every N` left out.
+    #[arg(long, default_value_t = 0)]
+    hold_out_every: usize,
     #[arg(long)]
     json: bool,
 }
@@ -140,8 +184,12 @@ impl EvalCmd {
     pub fn run(self) -> Result<()> {
         let model = io::load_field(&self.model)?;
         let scene = Scene::load(&self.scene)?;
-        let masks = MaskSource::parse(&self.masks, &self.scene)?;
-        let r = evaluate_model(&model, &scene, &masks, self.downscale)?;
+        let masks = match (&self.masks, model.is_scene_field()) {
+            (Some(m), _) => MaskSource::parse(m, &self.scene)?,
+            (None, true) => MaskSource::Opaque,
+            (None, false) => MaskSource::Alpha,
+        };
+        let r = evaluate_model(&model, &scene, &masks, self.downscale, self.hold_out_every)?;
         if self.json {
             let v = serde_json::json!({
                 "psnr": r.psnr, "ssim": r.ssim, "num_views": r.num_views, "views": r.views,

@@ -1,6 +1,7 @@
 //! Rendering whole views (RGB, depth, alpha; multi-threaded by rows) and scoring them: PSNR and
 //! SSIM against the truth composited on white (the NeRF-synthetic protocol).
 
+use super::holdout::is_held_out;
 use super::io::Model;
 use super::model::Field;
 use super::render::{render_ray, RenderOptions};
@@ -193,16 +194,24 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
     }
 }
 
-/// Score a model on a scene's views, with `masks` as the truth's alpha, at `downscale` (default:
-/// the one it was trained at), rendering with the default sampling (half-voxel steps) however
-/// coarsely training sampled.
+/// Score a model on a scene's views (only those [`is_held_out`] by `held_out_every`, when not
+/// 0), with `masks` as the truth's alpha, at `downscale` (default: the one it was trained at),
+/// rendering with the default sampling (half-voxel steps) however coarsely training sampled.
 pub fn evaluate_model(
     model: &Model,
     scene: &Scene,
     masks: &MaskSource,
     downscale: Option<u32>,
+    held_out_every: usize,
 ) -> Result<EvalReport> {
-    let views = load_views(scene, masks, downscale.unwrap_or_else(|| model.downscale()))?;
+    let mut views = load_views(scene, masks, downscale.unwrap_or_else(|| model.downscale()))?;
+    if held_out_every > 0 {
+        let mut i = 0;
+        views.retain(|_| {
+            i += 1;
+            is_held_out(i - 1, held_out_every)
+        });
+    }
     Ok(evaluate(&model.field, &RenderOptions::default(), &views))
 }
 

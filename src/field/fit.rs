@@ -4,13 +4,17 @@
 
 use super::depth::{add_dense_depth, add_sparse_depth};
 use super::io::Model;
+use super::layout::{choose_space, SpaceChoice};
 use super::rays::RaySet;
-use super::session::{prepare, run, RunSummary, SetupConfig, SetupReport, StopRule};
+use super::session::{prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule};
 use super::train::{StepStats, TrainConfig, Trainer};
 use super::view::{load_views, MaskSource};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
+use crate::util::mask::{dilate, is_object};
+use image::GrayImage;
 use serde::Serialize;
+use std::sync::Arc;
 
 /// Depth supervision.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -153,11 +157,124 @@ pub fn fit_scene(
     Ok(Fitted { trainer, report })
 }
 
-/// The notes a model file keeps about its training: where it came from (scene, downscale, the
-/// world's up direction, for meshing without the scene) and what happened.
-pub fn model_notes(scene: &Scene, opts: &FitOptions, report: &TrainReport) -> serde_json::Value {
+/// How to train a scene field: the whole scene, or the scene without some objects (their
+/// pixels, dilated, carry no loss; other views fill in what they hid).
+#[derive(Clone, Debug)]
+pub struct SceneFitOptions {
+    /// Which space the grid lives in ([`SpaceChoice::Auto`]: from the capture's layout).
+    pub space: SpaceChoice,
+    pub fit: FitOptions,
+    /// Masks of the objects to remove, one per scene image (None: nothing to remove there).
+    pub removed: Option<Arc<Vec<Option<GrayImage>>>>,
+    /// Grow the removed masks by this many pixels (full resolution): SAM's tight edges would
+    /// otherwise leave a rim of the object in the background.
+    pub dilate_px: u32,
+}
+
+impl Default for SceneFitOptions {
+    fn default() -> Self {
+        SceneFitOptions {
+            space: SpaceChoice::Auto,
+            fit: FitOptions::default(),
+            removed: None,
+            dilate_px: 4,
+        }
+    }
+}
+
+/// Train a scene field on every view of `scene` (less `opts.fit.exclude_views`): RGB is the
+/// target everywhere except under the removed objects' dilated masks. Returns the trained field
+/// with the space setup's explanation in its report.
+pub fn fit_scene_field(
+    scene: &Scene,
+    opts: &SceneFitOptions,
+    progress: &mut dyn FnMut(&StepStats),
+) -> Result<Fitted> {
+    let fit = &opts.fit;
+    if fit.downscale == 0 {
+        return Err(Error::invalid("--downscale must be at least 1"));
+    }
+    let space = choose_space(scene, opts.space, fit.downscale)?;
+    let mut views = load_views(scene, &MaskSource::Opaque, fit.downscale)?;
+    if let Some(removed) = &opts.removed {
+        for (v, m) in views.iter_mut().zip(removed.iter()) {
+            if let Some(m) = m {
+                v.loss_mask = Some(loss_mask(
+                    m,
+                    opts.dilate_px,
+                    fit.downscale,
+                    v.width,
+                    v.height,
+                ));
+            }
+        }
+    }
+    views.retain(|v| !fit.exclude_views.contains(&v.name));
+    if views.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: no views left to train on",
+            scene.source.display()
+        )));
+    }
+    let cfg = TrainConfig {
+        seed: fit.seed,
+        steps: fit.steps,
+        ..Default::default()
+    };
+    let (mut trainer, rays, setup) = prepare_scene(&views, &space, &fit.setup, cfg)?;
+    let stop = StopRule {
+        time_budget: fit.time_budget,
+        plateau_db: Some(0.01),
+        window: 500,
+    };
+    let summary = run(&mut trainer, &views, &rays, &stop, progress);
+    let report = TrainReport {
+        setup: Some(setup),
+        run: summary,
+        vertices: trainer.field.grid.num_vertices(),
+        dims: trainer.field.grid.dims,
+        memory_bytes: trainer.memory_bytes(),
+        occupied_cells: trainer.field.occupied_cells(),
+        depth_targets: 0,
+    };
+    Ok(Fitted { trainer, report })
+}
+
+/// Which pixels of a view (downscaled by `factor` to `w` x `h`) carry a loss: those whose whole
+/// block lies outside the removed mask grown by `dilate_px`.
+fn loss_mask(removed: &GrayImage, dilate_px: u32, factor: u32, w: u32, h: u32) -> Vec<bool> {
+    let grown = dilate(removed, dilate_px);
+    let f = factor.max(1);
+    let mut keep = vec![true; (w * h) as usize];
+    for (x, y, p) in grown.enumerate_pixels() {
+        let (dx, dy) = (x / f, y / f);
+        if is_object(p[0]) && dx < w && dy < h {
+            keep[(dy * w + dx) as usize] = false;
+        }
+    }
+    keep
+}
+
+/// What a model file holds: one object's field, or a field of the scene (whole, or with objects
+/// removed).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FieldKind {
+    Object,
+    Scene,
+}
+
+/// The notes a model file keeps about its training: what it is, where it came from (scene,
+/// downscale, the world's up direction, for meshing without the scene) and what happened.
+pub fn model_notes(
+    kind: FieldKind,
+    scene: &Scene,
+    opts: &FitOptions,
+    report: &TrainReport,
+) -> serde_json::Value {
     let (up, up_why) = scene.up();
     serde_json::json!({
+        "kind": kind,
         "downscale": opts.downscale,
         "setup": report.setup,
         "run": report.run,

@@ -7,13 +7,19 @@ use super::view::View;
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Split views into (train, held out): every `every`-th view, starting with the first, is held
-/// out (`every` = 6 holds out 6 of the demo scene's 36 views, spread around the ring).
+/// Whether view `i` is held out when every `every`-th view is (0: none): views every/2,
+/// every/2 + every, ... (the first view, where a demo click is, stays in training; `every` = 6
+/// holds out 6 of the demo scene's 36 views, spread around the ring).
+pub fn is_held_out(i: usize, every: usize) -> bool {
+    every > 0 && i % every == every / 2
+}
+
+/// Split views into (train, held out) by [`is_held_out`] (`every` at least 2).
 pub fn split_every(views: Vec<View>, every: usize) -> (Vec<View>, Vec<View>) {
     let every = every.max(2);
     let (mut train, mut test) = (Vec::new(), Vec::new());
     for (i, v) in views.into_iter().enumerate() {
-        if i % every == 0 {
+        if is_held_out(i, every) {
             test.push(v);
         } else {
             train.push(v);

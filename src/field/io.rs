@@ -120,6 +120,11 @@ impl Model {
             .unwrap_or(1)
     }
 
+    /// Whether this is a field of a scene (notes `"kind": "scene"`) rather than of one object.
+    pub fn is_scene_field(&self) -> bool {
+        self.notes.get("kind").and_then(|k| k.as_str()) == Some("scene")
+    }
+
     /// The capture's up direction recorded at training ([`crate::Scene::up`]), if any.
     pub fn up(&self) -> Option<glam::DVec3> {
         let v = self.notes.get("up")?.as_array()?;

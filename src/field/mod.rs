@@ -54,7 +54,11 @@ pub mod space;
 pub mod train;
 pub mod view;
 
-pub use fit::{fit_scene, model_notes, DepthMode, FitOptions, Fitted, TrainReport};
+pub use fit::{
+    fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind, FitOptions, Fitted,
+    SceneFitOptions, TrainReport,
+};
+pub use layout::SpaceChoice;
 pub use model::{Field, FieldConfig};
 pub use render::RenderOptions;
 pub use session::{prepare, run, SetupConfig, StopRule};

@@ -15,6 +15,8 @@ use std::sync::Arc;
 pub enum MaskSource {
     /// The image's own alpha channel (NeRF-synthetic RGBA).
     Alpha,
+    /// Every pixel is opaque: a scene field sees everything.
+    Opaque,
     /// A folder of masks ([`crate::scene::io::find_mask`]: named like the images).
     Dir(PathBuf),
     /// Each view's `mask_path` in the scene.
@@ -71,6 +73,13 @@ impl MaskSource {
         let im = &scene.images[index];
         let file = match self {
             MaskSource::Alpha => return Ok(None),
+            MaskSource::Opaque => {
+                let (w, h) = (scene.camera_of(im).width, scene.camera_of(im).height);
+                return Ok(Some((
+                    GrayImage::from_pixel(w, h, image::Luma([255])),
+                    None,
+                )));
+            }
             MaskSource::Images(masks) => {
                 return Ok(masks.get(index).cloned().flatten().map(|m| (m, None)))
             }

@@ -16,7 +16,8 @@
 //! ```
 
 use crate::error::{Error, Result};
-use crate::field::{fit_scene, model_notes, FitOptions, MaskSource, TrainReport};
+use crate::field::holdout::is_held_out;
+use crate::field::{fit_scene, model_notes, FieldKind, FitOptions, MaskSource, TrainReport};
 use crate::mesh::frame::GltfFrame;
 use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
 use crate::mesh::{gltf::write_glbs, io::write_mesh, Mesh};
@@ -43,7 +44,7 @@ pub struct ExtractOptions {
     pub mesh: FieldMeshOptions,
     pub turntable: TurntableOptions,
     pub overwrite: bool,
-    /// Hold out every n-th view (index % n == n / 2) from training, for evaluation (0: none).
+    /// Hold out every n-th view from training, for evaluation ([`is_held_out`]; 0: none).
     pub hold_out_every: usize,
 }
 
@@ -236,7 +237,7 @@ fn extract_object(
     })?;
     progress.end();
     let model = dir.join("model.objf");
-    let notes = model_notes(scene, &fit, &fitted.report);
+    let notes = model_notes(FieldKind::Object, scene, &fit, &fitted.report);
     crate::field::io::save(
         &model,
         &fitted.trainer.parts(crate::field::io::IDENTITY, notes),
@@ -287,8 +288,8 @@ fn extract_object(
     Ok((report, mesh))
 }
 
-/// Which views an object trains on: ok views, less every `hold_out_every`-th (index % n == n/2)
-/// held out for evaluation.
+/// Which views an object trains on: ok views, less every `hold_out_every`-th held out for
+/// evaluation ([`is_held_out`]).
 fn summarise(obj: &ObjectSegmentation, hold_out_every: usize) -> SegmentationSummary {
     let names = |keep: &dyn Fn(usize, ViewStatus) -> bool| -> Vec<String> {
         obj.views
@@ -308,7 +309,7 @@ fn summarise(obj: &ObjectSegmentation, hold_out_every: usize) -> SegmentationSum
         num_points: obj.points.len(),
         ok_views: names(&|_, s| s == ViewStatus::Ok),
         excluded: names(&|_, s| s != ViewStatus::Ok),
-        held_out: names(&|i, s| n > 0 && i % n == n / 2 && s == ViewStatus::Ok),
+        held_out: names(&|i, s| is_held_out(i, n) && s == ViewStatus::Ok),
     }
 }
 

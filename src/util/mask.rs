@@ -57,6 +57,53 @@ pub fn area(m: &GrayImage) -> usize {
     m.pixels().filter(|p| is_object(p[0])).count()
 }
 
+/// The mask grown by `radius` pixels (a square neighbourhood; separable max filter), as 0/255.
+pub fn dilate(m: &GrayImage, radius: u32) -> GrayImage {
+    let (w, h) = m.dimensions();
+    let r = radius as i64;
+    let on: Vec<bool> = m.pixels().map(|p| is_object(p[0])).collect();
+    let mut rows = vec![false; on.len()];
+    for y in 0..h as i64 {
+        let mut last_on = i64::MIN / 2;
+        // Left to right, then right to left: a pixel is on when an on pixel lies within r.
+        for x in 0..w as i64 {
+            if on[(y * w as i64 + x) as usize] {
+                last_on = x;
+            }
+            rows[(y * w as i64 + x) as usize] = x - last_on <= r;
+        }
+        let mut next_on = i64::MAX / 2;
+        for x in (0..w as i64).rev() {
+            if on[(y * w as i64 + x) as usize] {
+                next_on = x;
+            }
+            let i = (y * w as i64 + x) as usize;
+            rows[i] = rows[i] || next_on - x <= r;
+        }
+    }
+    let mut out = GrayImage::new(w, h);
+    for x in 0..w as i64 {
+        let mut last_on = i64::MIN / 2;
+        let mut col = vec![false; h as usize];
+        for y in 0..h as i64 {
+            if rows[(y * w as i64 + x) as usize] {
+                last_on = y;
+            }
+            col[y as usize] = y - last_on <= r;
+        }
+        let mut next_on = i64::MAX / 2;
+        for y in (0..h as i64).rev() {
+            if rows[(y * w as i64 + x) as usize] {
+                next_on = y;
+            }
+            if col[y as usize] || next_on - y <= r {
+                out.put_pixel(x as u32, y as u32, image::Luma([255]));
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -72,5 +119,16 @@ mod tests {
         assert_eq!(area(&b), 2);
         assert_eq!(coverage(&a, &GrayImage::new(4, 1)), 0.0);
         assert_eq!(iou(&GrayImage::new(2, 2), &GrayImage::new(2, 2)), 1.0);
+    }
+
+    #[test]
+    fn dilation_grows_by_the_radius() {
+        let mut m = GrayImage::new(9, 7);
+        m.put_pixel(4, 3, image::Luma([255]));
+        let d = dilate(&m, 2);
+        assert_eq!(area(&d), 25);
+        assert!(is_object(d.get_pixel(2, 1)[0]) && is_object(d.get_pixel(6, 5)[0]));
+        assert!(!is_object(d.get_pixel(1, 3)[0]) && !is_object(d.get_pixel(4, 6)[0]));
+        assert_eq!(dilate(&m, 0), m);
     }
 }
