@@ -8,14 +8,18 @@
 //!           channels, SH degree, activations), the object's world transform, the training
 //!           settings and step, and the list of arrays that follow (name, dtype, length, SHA-256)
 //! arrays    in the header's order, each `length` values of its dtype, little-endian:
-//!           "grid"      f32, dims[0]*dims[1]*dims[2]*channels, x-fastest, channels per vertex
-//!                       [raw density, SH red (K), SH green (K), SH blue (K)]
-//!           "occupancy" u64, one bit per cell, x-fastest
-//!           "adam_m", "adam_v" f32 (optional; present for resuming training)
+//!           "bricks"    u64 per allocated brick: its position x | y << 21 | z << 42, in
+//!                       (z, y, x) order (bricks of 4^3 vertices, `field::grid`)
+//!           "grid"      f32, bricks * 64 vertices * channels, vertices x-fastest in their brick,
+//!                       channels per vertex [raw density, SH red (K), SH green (K), SH blue (K)]
+//!           "occupancy" u64 per brick, one bit per cell whose base vertex is in the brick
+//!           "adam_m", "adam_v" f32 like "grid" (optional; present for resuming training)
+//! Versions 1 and 2 stored a dense grid (x-fastest over dims) and one occupancy bit per cell.
 //! ```
 //! Every array is checked against its length and hash, and the file must end where the last
 //! array ends, so a truncated or corrupted file is an error that says what is wrong.
 
+use super::grid::{Grid, BRICK_VERTICES};
 use super::model::{sh_coeffs, Field, FieldConfig};
 use super::space::Space;
 use super::train::{TrainConfig, Trainer};
@@ -27,8 +31,10 @@ use sha2::{Digest, Sha256};
 use std::path::Path;
 
 pub const MAGIC: &[u8; 8] = b"OBJNFLD\n";
-/// 2: the header records the field's [`Space`] (version 1 files are box-space fields).
-pub const VERSION: u32 = 2;
+/// 3: sparse bricks ("bricks": the allocated bricks' positions; "grid", "occupancy" and the
+/// optimiser state per brick). 2: a dense grid with the field's [`Space`] in the header. 1: a
+/// dense box-space grid. Versions 1 and 2 still load (as a grid with every brick allocated).
+pub const VERSION: u32 = 3;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ArrayInfo {
@@ -222,7 +228,9 @@ impl Blob<'_> {
 
 pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
     let f = m.field;
+    let bricks: Vec<u64> = f.grid.brick_list().iter().map(|&b| pack_brick(b)).collect();
     let mut blobs: Vec<(&str, Blob)> = vec![
+        ("bricks", Blob::U64(&bricks)),
         ("grid", Blob::F32(&f.grid.data)),
         ("occupancy", Blob::U64(&f.occupancy)),
     ];
@@ -289,55 +297,138 @@ fn read(path: &Path, with_adam: bool) -> Result<Model> {
     let (h, start) = read_header(path, &mut r, total)?;
     let mut arrays = read_arrays(path, &mut r, &h, start, total, with_adam)?;
     let bad = |msg: String| Error::format(path, msg);
-    let nv: usize = h.dims.iter().product();
-    let ncells: usize = h.dims.iter().map(|d| d - 1).product();
-    let mut f32s = |name: &str, want: usize| -> Result<Option<Vec<f32>>> {
-        let Some(v) = arrays.f32s.remove(name) else {
-            return Ok(None);
-        };
-        if v.len() != want {
-            return Err(bad(format!(
-                "array '{name}' holds {} values, the dims need {want}",
-                v.len()
-            )));
-        }
-        Ok(Some(v))
+    let (field, adam) = if h.version >= 3 {
+        bricked_field(&h, &mut arrays, with_adam).map_err(bad)?
+    } else {
+        dense_field(&h, &mut arrays).map_err(bad)?
     };
-    let grid = f32s("grid", nv * h.channels)?.ok_or_else(|| bad("no 'grid' array".into()))?;
-    let occupancy = arrays
-        .u64s
-        .remove("occupancy")
-        .ok_or_else(|| bad("no 'occupancy' array".into()))?;
-    if occupancy.len() != ncells.div_ceil(64) {
-        return Err(bad("array 'occupancy' does not match the dims".into()));
-    }
-    let adam = match (
-        f32s("adam_m", nv * h.channels)?,
-        f32s("adam_v", nv * h.channels)?,
-    ) {
-        (Some(m), Some(v)) => Some((m, v, h.adam_t)),
-        _ => None,
-    };
-    let mut field = Field::new(
-        h.config.clone(),
-        Vec3::from_array(h.box_min),
-        Vec3::from_array(h.box_max),
-        h.dims,
-    );
-    field.space = h.space.clone();
-    field.voxel = h.voxel;
-    field.grid.data = grid;
-    field.occupancy = occupancy;
-    field.rebuild_blocks();
     Ok(Model {
         field,
         final_dims: h.final_dims,
         world_transform: h.world_transform,
         train: h.train,
         step: h.step,
-        adam,
+        adam: adam.map(|(m, v)| (m, v, h.adam_t)),
         notes: h.notes,
     })
+}
+
+/// A brick position packed into one u64 (21 bits per axis).
+fn pack_brick(b: [u32; 3]) -> u64 {
+    b[0] as u64 | (b[1] as u64) << 21 | (b[2] as u64) << 42
+}
+
+fn unpack_brick(v: u64) -> [u32; 3] {
+    [0, 21, 42].map(|s| ((v >> s) & 0x1f_ffff) as u32)
+}
+
+/// The optimiser's m and v, as saved.
+type AdamArrays = Option<(Vec<f32>, Vec<f32>)>;
+
+/// A version 3 file's field: bricks, their values and occupancy words.
+fn bricked_field(
+    h: &Header,
+    arrays: &mut Arrays,
+    with_adam: bool,
+) -> std::result::Result<(Field, AdamArrays), String> {
+    let bricks: Vec<[u32; 3]> = arrays
+        .u64s
+        .remove("bricks")
+        .ok_or("no 'bricks' array")?
+        .into_iter()
+        .map(unpack_brick)
+        .collect();
+    let values = bricks.len() * BRICK_VERTICES * h.channels;
+    let mut f32s = |name: &str| -> std::result::Result<Option<Vec<f32>>, String> {
+        match arrays.f32s.remove(name) {
+            Some(v) if v.len() != values => Err(format!(
+                "array '{name}' holds {} values, {} bricks need {values}",
+                v.len(),
+                bricks.len()
+            )),
+            v => Ok(v),
+        }
+    };
+    let data = f32s("grid")?.ok_or("no 'grid' array")?;
+    let adam = match (f32s("adam_m")?, f32s("adam_v")?) {
+        (Some(m), Some(v)) if with_adam => Some((m, v)),
+        _ => None,
+    };
+    let occupancy = arrays
+        .u64s
+        .remove("occupancy")
+        .ok_or("no 'occupancy' array")?;
+    if occupancy.len() != bricks.len() {
+        return Err("array 'occupancy' does not match the bricks".into());
+    }
+    let mut field = empty_field(h);
+    let fill = vec![0.0; h.channels];
+    field.grid = Grid::from_parts(h.dims, h.channels, &fill, bricks, data)?;
+    field.occupancy = occupancy;
+    Ok((field, adam))
+}
+
+/// A version 1 or 2 file's field: a dense grid and one occupancy bit per cell, loaded with every
+/// brick allocated (its optimiser state, laid out densely, is not carried over).
+fn dense_field(
+    h: &Header,
+    arrays: &mut Arrays,
+) -> std::result::Result<(Field, AdamArrays), String> {
+    let nv: usize = h.dims.iter().product();
+    let ncells: usize = h.dims.iter().map(|d| d - 1).product();
+    let dense = arrays.f32s.remove("grid").ok_or("no 'grid' array")?;
+    if dense.len() != nv * h.channels {
+        return Err(format!(
+            "array 'grid' holds {} values, the dims need {}",
+            dense.len(),
+            nv * h.channels
+        ));
+    }
+    let bits = arrays
+        .u64s
+        .remove("occupancy")
+        .ok_or("no 'occupancy' array")?;
+    if bits.len() != ncells.div_ceil(64) {
+        return Err("array 'occupancy' does not match the dims".into());
+    }
+    let mut field = empty_field(h);
+    field.grid = Grid::new(h.dims, h.channels, &vec![0.0; h.channels]);
+    let [nx, ny, nz] = h.dims;
+    let ch = h.channels;
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let v = field.grid.vertex_slot(x, y, z) as usize;
+                let src = (x + nx * (y + ny * z)) * ch;
+                field.grid.data[v * ch..(v + 1) * ch].copy_from_slice(&dense[src..src + ch]);
+            }
+        }
+    }
+    field.fill_occupancy(false);
+    for z in 0..nz - 1 {
+        for y in 0..ny - 1 {
+            for x in 0..nx - 1 {
+                let c = x + (nx - 1) * (y + (ny - 1) * z);
+                if bits[c >> 6] >> (c & 63) & 1 == 1 {
+                    field.set_occupied([x, y, z], true);
+                }
+            }
+        }
+    }
+    Ok((field, None))
+}
+
+/// The header's field with no brick allocated (its grid and occupancy are filled in after).
+fn empty_field(h: &Header) -> Field {
+    Field {
+        config: h.config.clone(),
+        space: h.space.clone(),
+        box_min: Vec3::from_array(h.box_min),
+        box_max: Vec3::from_array(h.box_max),
+        voxel: h.voxel,
+        grid: Grid::with_bricks(h.dims, h.channels, &vec![0.0; h.channels], |_| false),
+        occupancy: Vec::new(),
+    }
 }
 
 /// The magic, the header length and the header, checked for consistency; returns the header
@@ -380,7 +471,17 @@ fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(H
             h.channels, h.config.sh_degree
         )));
     }
-    if h.dims.iter().any(|&d| d < 2) || h.voxel.is_nan() || h.voxel <= 0.0 {
+    // The brick index is dense over the box: bound the box so a corrupt header cannot ask for
+    // an absurd allocation (2^32 vertices: a 1600^3 grid).
+    let box_vertices = h
+        .dims
+        .iter()
+        .try_fold(1u64, |a, &d| a.checked_mul(d as u64));
+    if h.dims.iter().any(|&d| d < 2)
+        || box_vertices.is_none_or(|n| n > 1 << 32)
+        || h.voxel.is_nan()
+        || h.voxel <= 0.0
+    {
         return Err(bad(format!(
             "inconsistent header: dims {:?}, voxel {}",
             h.dims, h.voxel

@@ -7,7 +7,7 @@
 //! `delta` is the sample spacing measured in units of the finest voxel, so a raw value keeps its
 //! meaning when the grid is refined.
 
-use super::grid::Grid;
+use super::grid::{Grid, BRICK, BRICK_VERTICES, NONE};
 use super::space::Space;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -35,18 +35,13 @@ pub struct Field {
     /// Length of one voxel of the current grid in space coordinates (cubic voxels).
     pub voxel: f32,
     /// Channels: [raw density, SH red (K), SH green (K), SH blue (K)], K = (degree + 1)^2.
+    /// Sparse: only bricks around occupied cells are allocated.
     pub grid: Grid,
-    /// One bit per cell (cells are (nx-1)(ny-1)(nz-1), x-fastest): may hold density.
+    /// Per grid slot, one bit per cell whose base vertex lies in that brick (x-fastest, as the
+    /// brick's vertices): the cell may hold density. A cell's 8 corners are always allocated
+    /// when it is occupied; rays skip bricks whose word is 0.
     pub occupancy: Vec<u64>,
-    /// Per block of BLOCK^3 cells: does any cell in it hold density? Lets a ray jump over empty
-    /// blocks instead of testing every sample position. Derived from `occupancy` by
-    /// [`Field::rebuild_blocks`].
-    pub blocks: Vec<bool>,
-    pub block_dims: [usize; 3],
 }
-
-/// Cells per side of an empty-space-skipping block.
-pub const BLOCK: usize = 8;
 
 pub fn sh_coeffs(degree: u32) -> usize {
     ((degree + 1) * (degree + 1)) as usize
@@ -96,7 +91,7 @@ pub fn sigmoid(x: f32) -> f32 {
 
 impl Field {
     /// A fresh field over a box: density 0 (alpha = alpha_init per finest voxel), grey colour,
-    /// every cell occupied.
+    /// every cell occupied (every brick allocated).
     pub fn new(config: FieldConfig, box_min: Vec3, box_max: Vec3, dims: [usize; 3]) -> Field {
         let k = sh_coeffs(config.sh_degree);
         let fill = vec![0.0f32; 1 + 3 * k];
@@ -108,13 +103,10 @@ impl Field {
             box_min,
             box_max,
             voxel,
-            grid,
             occupancy: Vec::new(),
-            blocks: Vec::new(),
-            block_dims: [0; 3],
+            grid,
         };
         f.fill_occupancy(true);
-        f.rebuild_blocks();
         f
     }
 
@@ -134,57 +126,133 @@ impl Field {
         (1.0 / (1.0 - a) - 1.0).ln()
     }
 
+    /// Cells of the whole box.
     pub fn num_cells(&self) -> usize {
         let d = self.grid.dims;
         (d[0] - 1) * (d[1] - 1) * (d[2] - 1)
     }
 
+    /// The word and bit of cell `b` (its base vertex), if its brick is allocated.
     #[inline]
-    pub fn cell_index(&self, b: [usize; 3]) -> usize {
-        let d = self.grid.dims;
-        b[0] + (d[0] - 1) * (b[1] + (d[1] - 1) * b[2])
+    fn cell_bit(&self, b: [usize; 3]) -> Option<(usize, u32)> {
+        let s = self.grid.slot(b.map(|v| v / BRICK))?;
+        let l = b[0] % BRICK + BRICK * (b[1] % BRICK + BRICK * (b[2] % BRICK));
+        Some((s, l as u32))
     }
 
+    /// Whether cell `b` (its base vertex) may hold density.
     #[inline]
-    pub fn occupied(&self, cell: usize) -> bool {
-        self.occupancy[cell >> 6] >> (cell & 63) & 1 == 1
+    pub fn occupied(&self, b: [usize; 3]) -> bool {
+        self.cell_bit(b)
+            .is_some_and(|(s, l)| self.occupancy[s] >> l & 1 == 1)
     }
 
+    /// Whether any cell of the brick holding cell `b` may hold density (rays skip it if not).
+    #[inline]
+    pub fn brick_occupied(&self, b: [usize; 3]) -> bool {
+        self.grid
+            .slot(b.map(|v| v / BRICK))
+            .is_some_and(|s| self.occupancy[s] != 0)
+    }
+
+    /// Set every cell of the box free or occupied (occupied needs every brick allocated).
     pub fn fill_occupancy(&mut self, on: bool) {
-        let n = self.num_cells();
-        self.occupancy = vec![if on { u64::MAX } else { 0 }; n.div_ceil(64)];
-    }
-
-    pub fn set_occupied(&mut self, cell: usize, on: bool) {
+        self.occupancy = vec![0; self.grid.num_slots()];
         if on {
-            self.occupancy[cell >> 6] |= 1 << (cell & 63);
-        } else {
-            self.occupancy[cell >> 6] &= !(1 << (cell & 63));
+            let d = self.grid.dims;
+            for s in 0..self.grid.num_slots() {
+                let b = self.grid.brick_of_slot(s);
+                let mut word = 0u64;
+                for l in 0..BRICK_VERTICES {
+                    let c = [
+                        b[0] * BRICK + l % BRICK,
+                        b[1] * BRICK + (l / BRICK) % BRICK,
+                        b[2] * BRICK + l / (BRICK * BRICK),
+                    ];
+                    if c[0] + 1 < d[0] && c[1] + 1 < d[1] && c[2] + 1 < d[2] {
+                        word |= 1 << l;
+                    }
+                }
+                self.occupancy[s] = word;
+            }
         }
     }
 
-    /// Recompute the block map from the cell occupancy (call after changing occupancy).
-    pub fn rebuild_blocks(&mut self) {
-        let d = self.grid.dims;
-        let cd = [d[0] - 1, d[1] - 1, d[2] - 1];
-        let bd = cd.map(|c| c.div_ceil(BLOCK));
-        let mut blocks = vec![false; bd[0] * bd[1] * bd[2]];
-        for z in 0..cd[2] {
-            for y in 0..cd[1] {
-                for x in 0..cd[0] {
-                    if self.occupied(self.cell_index([x, y, z])) {
-                        blocks[x / BLOCK + bd[0] * (y / BLOCK + bd[1] * (z / BLOCK))] = true;
+    /// Mark cell `b` occupied or free. Its corners' bricks must be allocated to occupy it.
+    pub fn set_occupied(&mut self, b: [usize; 3], on: bool) {
+        let Some((s, l)) = self.cell_bit(b) else {
+            debug_assert!(!on, "cell {b:?} occupied without its brick");
+            return;
+        };
+        if on {
+            self.occupancy[s] |= 1 << l;
+        } else {
+            self.occupancy[s] &= !(1 << l);
+        }
+    }
+
+    pub fn occupied_cells(&self) -> usize {
+        self.occupancy.iter().map(|w| w.count_ones() as usize).sum()
+    }
+
+    /// Every occupied cell, by its base vertex.
+    pub fn occupied_cell_list(&self) -> Vec<[usize; 3]> {
+        let mut out = Vec::with_capacity(self.occupied_cells());
+        for (s, &word) in self.occupancy.iter().enumerate() {
+            let b = self.grid.brick_of_slot(s);
+            let mut w = word;
+            while w != 0 {
+                let l = w.trailing_zeros() as usize;
+                w &= w - 1;
+                out.push([
+                    b[0] * BRICK + l % BRICK,
+                    b[1] * BRICK + (l / BRICK) % BRICK,
+                    b[2] * BRICK + l / (BRICK * BRICK),
+                ]);
+            }
+        }
+        out
+    }
+
+    /// The bricks the occupied cells `cells` need: those of every cell's 8 corners.
+    fn needed_bricks(grid_dims: [usize; 3], cells: &[[usize; 3]]) -> Vec<bool> {
+        let bd = grid_dims.map(|d| d.div_ceil(BRICK));
+        let mut need = vec![false; bd.iter().product()];
+        for c in cells {
+            for dz in 0..2 {
+                for dy in 0..2 {
+                    for dx in 0..2 {
+                        let b = [
+                            (c[0] + dx) / BRICK,
+                            (c[1] + dy) / BRICK,
+                            (c[2] + dz) / BRICK,
+                        ];
+                        need[b[0] + bd[0] * (b[1] + bd[1] * b[2])] = true;
                     }
                 }
             }
         }
-        self.blocks = blocks;
-        self.block_dims = bd;
+        need
     }
 
-    pub fn occupied_cells(&self) -> usize {
-        let n = self.num_cells();
-        (0..n).filter(|&c| self.occupied(c)).count()
+    /// Drop the bricks no occupied cell needs. Returns the slot map ([`Grid::compact`]) when
+    /// something was dropped, for state laid out like the grid to follow.
+    pub fn release_free_bricks(&mut self) -> Option<Vec<u32>> {
+        let cells = self.occupied_cell_list();
+        let need = Field::needed_bricks(self.grid.dims, &cells);
+        let bd = self.grid.brick_dims;
+        let keep: Vec<bool> = (0..self.grid.num_slots())
+            .map(|s| {
+                let b = self.grid.brick_of_slot(s);
+                need[b[0] + bd[0] * (b[1] + bd[1] * b[2])]
+            })
+            .collect();
+        if keep.iter().all(|&k| k) {
+            return None;
+        }
+        let map = self.grid.compact(&keep);
+        super::grid::compact_buffer(&mut self.occupancy, &map, 1);
+        Some(map)
     }
 
     /// Drop cells whose largest possible alpha (over a step of `delta` finest voxels) is below
@@ -192,42 +260,25 @@ impl Field {
     /// that of its densest corner: the bound is exact and skipping loses nothing above `thresh`.
     /// Cells already free stay free (the visual hull carved them).
     pub fn prune_occupancy(&mut self, delta: f32, thresh: f32) {
-        let d = self.grid.dims;
         let ch = self.grid.channels;
         // raw density at which alpha reaches thresh
         let sp = -(1.0 - thresh).ln() / delta;
         let raw_min = if sp > 15.0 { sp } else { sp.exp_m1().ln() } - self.shift();
-        let dense: Vec<bool> = self
-            .grid
-            .data
-            .chunks_exact(ch)
-            .map(|v| v[0] >= raw_min)
+        let grid = &self.grid;
+        let dense = |x: usize, y: usize, z: usize| match grid.vertex_slot(x, y, z) {
+            NONE => false,
+            v => grid.data[v as usize * ch] >= raw_min,
+        };
+        let empty: Vec<[usize; 3]> = self
+            .occupied_cell_list()
+            .into_iter()
+            .filter(|c| {
+                !(0..8).any(|i| dense(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2)))
+            })
             .collect();
-        for z in 0..d[2] - 1 {
-            for y in 0..d[1] - 1 {
-                for x in 0..d[0] - 1 {
-                    let c = self.cell_index([x, y, z]);
-                    if !self.occupied(c) {
-                        continue;
-                    }
-                    let mut any = false;
-                    'corners: for dz in 0..2 {
-                        for dy in 0..2 {
-                            for dx in 0..2 {
-                                if dense[self.grid.vertex_index(x + dx, y + dy, z + dz)] {
-                                    any = true;
-                                    break 'corners;
-                                }
-                            }
-                        }
-                    }
-                    if !any {
-                        self.set_occupied(c, false);
-                    }
-                }
-            }
+        for c in empty {
+            self.set_occupied(c, false);
         }
-        self.rebuild_blocks();
     }
 
     /// World point to grid units (points a space cannot map, behind an NDC camera's near plane,
@@ -246,12 +297,30 @@ impl Field {
     }
 
     /// Grow the grid to `dims` (trilinear resampling); occupancy maps each new cell to the old
-    /// cell holding its centre, so carved space stays carved.
+    /// cell holding its centre, so carved space stays carved; only the bricks the occupied cells
+    /// need are allocated.
     pub fn upsample(&mut self, dims: [usize; 3]) {
-        let old = self.clone();
-        self.grid = self.grid.resampled(dims);
-        self.voxel =
+        let voxel =
             (self.box_max - self.box_min).max_element() / (dims.iter().max().unwrap() - 1) as f32;
+        let mut cells = Vec::new();
+        for z in 0..dims[2] - 1 {
+            for y in 0..dims[1] - 1 {
+                for x in 0..dims[0] - 1 {
+                    let c = self.box_min + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * voxel;
+                    let g = (c - self.box_min) / self.voxel;
+                    let (b, _) = self.grid.locate([g.x, g.y, g.z]);
+                    if self.occupied(b) {
+                        cells.push([x, y, z]);
+                    }
+                }
+            }
+        }
+        let need = Field::needed_bricks(dims, &cells);
+        let bd = dims.map(|d| d.div_ceil(BRICK));
+        self.grid = self
+            .grid
+            .resampled(dims, |b| need[b[0] + bd[0] * (b[1] + bd[1] * b[2])]);
+        self.voxel = voxel;
         // The box is re-derived from the dims so that vertices still span it exactly.
         self.box_max = self.box_min
             + Vec3::new(
@@ -260,20 +329,9 @@ impl Field {
                 (dims[2] - 1) as f32,
             ) * self.voxel;
         self.fill_occupancy(false);
-        for z in 0..dims[2] - 1 {
-            for y in 0..dims[1] - 1 {
-                for x in 0..dims[0] - 1 {
-                    let c = self.cell_center([x, y, z]);
-                    let g = (c - old.box_min) / old.voxel;
-                    let (b, _) = old.grid.locate([g.x, g.y, g.z]);
-                    if old.occupied(old.cell_index(b)) {
-                        let ci = self.cell_index([x, y, z]);
-                        self.set_occupied(ci, true);
-                    }
-                }
-            }
+        for c in cells {
+            self.set_occupied(c, true);
         }
-        self.rebuild_blocks();
     }
 
     /// Bytes held by the parameters (not counting optimiser state).
@@ -317,10 +375,12 @@ mod tests {
             [5, 5, 5],
         );
         f.fill_occupancy(false);
-        let c = f.cell_index([0, 0, 0]);
-        f.set_occupied(c, true);
+        f.set_occupied([0, 0, 0], true);
         f.upsample([9, 9, 9]);
         assert_eq!(f.occupied_cells(), 8);
+        // Only the bricks those 8 cells touch: the 2x2x2 cells' corners reach vertex 2 of each
+        // axis, inside brick 0.
+        assert_eq!(f.grid.num_slots(), 1);
         assert!((f.box_max - Vec3::ONE).abs().max_element() < 1e-6);
     }
 }

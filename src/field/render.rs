@@ -13,7 +13,8 @@
 // Index loops over the 3 colour channels read as the maths does; iterators would obscure it.
 #![allow(clippy::needless_range_loop)]
 
-use super::model::{sh_basis, sigmoid, softplus, Field, BLOCK};
+use super::grid::BRICK;
+use super::model::{sh_basis, sigmoid, softplus, Field};
 use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
@@ -153,15 +154,14 @@ impl<'a> Marcher<'a> {
         }
     }
 
-    /// Whether the block of cell base `b` holds any occupied cell.
+    /// Whether the brick of cell base `b` holds any occupied cell.
     #[inline]
     fn block_occupied(&self, b: [usize; 3]) -> bool {
-        let bd = self.f.block_dims;
-        self.f.blocks[b[0] / BLOCK + bd[0] * (b[1] / BLOCK + bd[1] * (b[2] / BLOCK))]
+        self.f.brick_occupied(b)
     }
 
     /// A straight path in space: samples every `step` voxels from `s0 + jitter * step`; empty
-    /// blocks are jumped over to the next sample of the same lattice.
+    /// bricks are jumped over to the next sample of the same lattice.
     fn line(&mut self, o: Vec3, d: Vec3, s0: f32, s1: f32, depth: LineDepth, jitter: f32) {
         let f = self.f;
         let step_w = self.opt.step * f.voxel;
@@ -180,11 +180,11 @@ impl<'a> Marcher<'a> {
             if !self.block_occupied(b) {
                 // Jump to the first sample of the lattice t0 + k * step past this block's exit,
                 // so the samples taken are the same as without skipping.
-                let bb = [b[0] / BLOCK, b[1] / BLOCK, b[2] / BLOCK];
+                let bb = [b[0] / BRICK, b[1] / BRICK, b[2] / BRICK];
                 let mut t_exit = f32::MAX;
                 for a in 0..3 {
-                    let lo = (bb[a] * BLOCK) as f32;
-                    let hi = ((bb[a] + 1) * BLOCK).min(dims[a] - 1) as f32;
+                    let lo = (bb[a] * BRICK) as f32;
+                    let hi = ((bb[a] + 1) * BRICK).min(dims[a] - 1) as f32;
                     let bound = if inv_dg[a] > 0.0 { hi } else { lo };
                     let te = (bound - og[a]) * inv_dg[a];
                     if te.is_finite() {
@@ -209,7 +209,7 @@ impl<'a> Marcher<'a> {
     #[inline]
     fn visit(&mut self, b: [usize; 3], fr: [f32; 3], t: f32) -> bool {
         let f = self.f;
-        if !f.occupied(f.cell_index(b)) {
+        if !f.occupied(b) {
             return true;
         }
         let kc = f.grid.corners_of(b, fr);
@@ -429,7 +429,7 @@ mod tests {
         let mut r = Rng::new(5);
         let ch = f.grid.channels;
         for v in 0..f.grid.num_vertices() {
-            let (x, y, z) = (v % 41, (v / 41) % 41, v / (41 * 41));
+            let [x, y, z] = f.grid.vertex_coords(v as u32);
             let p = Vec3::new(x as f32, y as f32, z as f32) / 20.0 - 1.0;
             let inside = (p - Vec3::new(0.2, -0.1, 0.0)).length() < 0.4;
             f.grid.data[v * ch] = if inside { 2.0 + r.f32() } else { -40.0 };
@@ -440,7 +440,14 @@ mod tests {
         let dense = f.clone();
         f.prune_occupancy(0.5, 1e-4);
         assert!(f.occupied_cells() < f.num_cells() / 5);
-        assert!(f.blocks.iter().any(|b| !b));
+        // Empty bricks are released: the sparse field holds a fraction of the dense one.
+        let all = f.grid.num_slots();
+        assert!(f.release_free_bricks().is_some());
+        assert!(
+            f.grid.num_slots() < all / 2,
+            "{} of {all} bricks",
+            f.grid.num_slots()
+        );
         let opt = RenderOptions::default();
         let mut s1 = Vec::new();
         let mut s2 = Vec::new();

@@ -86,9 +86,12 @@ pub fn prepare(
     let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
     let keep = visual_hull(views, lo, field.box_max, cells);
     for (c, &k) in keep.iter().enumerate() {
-        field.set_occupied(c, k);
+        if !k {
+            let plane = cells[0] * cells[1];
+            field.set_occupied([c % cells[0], (c / cells[0]) % cells[1], c / plane], false);
+        }
     }
-    field.rebuild_blocks();
+    field.release_free_bricks();
     let hull_cells = keep.iter().filter(|&&k| k).count();
     let rays = RaySet::build(views, &field);
     let report = plan.report(&field, &rays, hull_cells);

@@ -7,7 +7,7 @@
 //! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
 //! the same order whatever the thread count, and two runs with one seed give identical grids.
 
-use super::grid::Grid;
+use super::grid::{compact_buffer, BRICK, BRICK_VERTICES, NONE};
 use super::model::Field;
 use super::rays::RaySet;
 use super::render::{backward, distortion, forward, RayOut, RenderOptions, Sample};
@@ -212,6 +212,16 @@ impl Trainer {
         self.adam_t = 0;
     }
 
+    /// Follow the grid when it dropped bricks: the optimiser state of the kept slots moves with
+    /// them (the gradient is all zero between steps).
+    fn follow_compaction(&mut self, map: &[u32]) {
+        let per = BRICK_VERTICES * self.field.grid.channels;
+        compact_buffer(&mut self.m, map, per);
+        compact_buffer(&mut self.v, map, per);
+        self.grad.truncate(self.m.len());
+        compact_buffer(&mut self.stamp, map, BRICK_VERTICES);
+    }
+
     /// Optimiser state (m, v, step count) for saving a resumable model.
     pub fn adam_state(&self) -> (&[f32], &[f32], u32) {
         (&self.m, &self.v, self.adam_t)
@@ -268,6 +278,9 @@ impl Trainer {
         let delta = self.cfg.render.step * self.field.voxel / self.field.config.base_voxel;
         self.field
             .prune_occupancy(delta, self.cfg.render.alpha_thresh);
+        if let Some(map) = self.field.release_free_bricks() {
+            self.follow_compaction(&map);
+        }
     }
 
     /// One optimisation step on `batch` rays drawn from `rays`.
@@ -279,7 +292,7 @@ impl Trainer {
         let picks = draw_batch(&cfg, step, rays);
         let nchunks = picks.len().div_ceil(CHUNK);
         self.records.resize_with(nchunks, Vec::new);
-        let (nslabs, zper) = self.slabs();
+        let slabs = self.slabs();
         let field = &self.field;
         let stride = field.grid.channels + 4;
         let ctx = StepContext {
@@ -289,8 +302,8 @@ impl Trainer {
             step,
             inv_b: 1.0 / picks.len() as f32,
             plane: field.grid.dims[0] * field.grid.dims[1],
-            nslabs,
-            zper,
+            nslabs: slabs.count(),
+            layers_per_slab: slabs.layers_per_slab,
         };
         let stats: Vec<(f64, f64, usize)> = self
             .records
@@ -303,7 +316,7 @@ impl Trainer {
             .iter()
             .fold((0.0, 0.0, 0), |a, s| (a.0 + s.0, a.1 + s.1, a.2 + s.2));
         self.phase_secs[0] += clock.elapsed().as_secs_f64();
-        self.apply_gradients(stride);
+        self.apply_gradients(stride, &slabs);
         self.step += 1;
         if cfg.prune_every > 0 && self.step % cfg.prune_every == 0 {
             let c = std::time::Instant::now();
@@ -322,20 +335,27 @@ impl Trainer {
 
     /// How the grid's z-layers are split for the scatter: (slab count, layers per slab). Depends
     /// on the thread count, which does not change the sums (see the module notes).
-    fn slabs(&self) -> (usize, usize) {
-        let nz = self.field.grid.dims[2];
-        let want = (rayon::current_num_threads() * 2).clamp(1, nz);
-        let zper = nz.div_ceil(want);
-        (nz.div_ceil(zper), zper)
+    /// The grid's z-slabs: ranges of brick layers, each a contiguous range of slots, about two
+    /// per thread; each thread sums and applies the gradient of its own slab.
+    fn slabs(&self) -> Slabs {
+        let grid = &self.field.grid;
+        let layers = grid.brick_dims[2];
+        let want = (rayon::current_num_threads() * 2).clamp(1, layers);
+        let layers_per_slab = layers.div_ceil(want);
+        let starts = grid.layer_starts();
+        let bounds = (0..=layers.div_ceil(layers_per_slab))
+            .map(|i| starts[(i * layers_per_slab).min(layers)] * BRICK_VERTICES)
+            .collect();
+        Slabs {
+            layers_per_slab,
+            bounds,
+        }
     }
 
     /// Scatter the records into the gradient by z-slabs, add TV, and take an Adam step on the
     /// touched vertices only.
-    fn apply_gradients(&mut self, stride: usize) {
-        let dims = self.field.grid.dims;
+    fn apply_gradients(&mut self, stride: usize, slabs: &Slabs) {
         let ch = self.field.grid.channels;
-        let plane = dims[0] * dims[1];
-        let (_, zper) = self.slabs();
         let stamp_id = self.step as u32 + 1;
         let clock = std::time::Instant::now();
         // Without TV, each slab runs Adam on its vertices right after summing their gradients,
@@ -343,47 +363,43 @@ impl Trainer {
         // every slab's scatter finished first).
         let fused = self.cfg.tv_density == 0.0 && self.cfg.tv_color == 0.0;
         let adam = fused.then(|| self.adam_step());
+        // The parameters leave the grid for the pass: the grid's brick index finds corners while
+        // each slab writes its own parameters.
+        let mut data = std::mem::take(&mut self.field.grid.data);
+        let grid = &self.field.grid;
         let records = &self.records;
-        let (sx, sy, sz) = (1usize, dims[0], plane);
-        let offs = [0, sx, sy, sx + sy, sz, sx + sz, sy + sz, sx + sy + sz];
-        let span = zper * plane * ch;
-        let touched: Vec<Vec<u32>> = self
-            .grad
-            .par_chunks_mut(span)
-            .zip(self.stamp.par_chunks_mut(zper * plane))
-            .zip(self.field.grid.data.par_chunks_mut(span))
-            .zip(self.m.par_chunks_mut(span))
-            .zip(self.v.par_chunks_mut(span))
+        let plane = grid.dims[0] * grid.dims[1];
+        let bounds = &slabs.bounds;
+        let touched: Vec<Vec<u32>> = split_by(&mut self.grad, bounds, ch)
+            .into_par_iter()
+            .zip(split_by(&mut self.stamp, bounds, 1))
+            .zip(split_by(&mut data, bounds, ch))
+            .zip(split_by(&mut self.m, bounds, ch))
+            .zip(split_by(&mut self.v, bounds, ch))
             .enumerate()
             .map(|(si, ((((gslab, stslab), pslab), mslab), vslab))| {
-                let z0 = si * zper;
-                let v0 = z0 * plane;
-                let v1 = v0 + stslab.len();
+                let (v0, v1) = (bounds[si], bounds[si + 1]);
                 let mut list = Vec::new();
                 for rec in records {
                     for r in rec[si].chunks_exact(stride) {
                         let base = r[0].to_bits() as usize;
-                        let bz = base / plane;
-                        if bz + 1 < z0 || bz >= z0 + stslab.len() / plane {
-                            continue;
-                        }
-                        let k = Grid::corners_in(
-                            dims,
-                            [base % dims[0], (base / dims[0]) % dims[1], bz],
-                            [r[1], r[2], r[3]],
-                        );
+                        let cell = [
+                            base % grid.dims[0],
+                            (base / grid.dims[0]) % grid.dims[1],
+                            base / plane,
+                        ];
+                        let k = grid.corners_of(cell, [r[1], r[2], r[3]]);
                         let g = &r[4..];
-                        for (c, &off) in offs.iter().enumerate() {
-                            let vtx = base + off;
+                        for (&vtx, &w) in k.idx.iter().zip(&k.w) {
+                            let vtx = vtx as usize;
                             if vtx < v0 || vtx >= v1 {
-                                continue;
+                                continue; // another slab's vertex, or unallocated (NONE)
                             }
                             let local = vtx - v0;
                             if stslab[local] != stamp_id {
                                 stslab[local] = stamp_id;
                                 list.push(vtx as u32);
                             }
-                            let w = k.w[c];
                             let dst = &mut gslab[local * ch..(local + 1) * ch];
                             for (d, s) in dst.iter_mut().zip(g) {
                                 *d += w * s;
@@ -400,44 +416,45 @@ impl Trainer {
                 list
             })
             .collect();
+        self.field.grid.data = data;
         self.phase_secs[1] += clock.elapsed().as_secs_f64();
         if !fused {
             let clock = std::time::Instant::now();
-            self.tv_and_adam(&touched, zper * plane);
+            self.tv_and_adam(&touched, bounds);
             self.phase_secs[2] += clock.elapsed().as_secs_f64();
         }
     }
 
-    fn tv_and_adam(&mut self, touched: &[Vec<u32>], slab_vertices: usize) {
+    fn tv_and_adam(&mut self, touched: &[Vec<u32>], bounds: &[usize]) {
         let cfg = &self.cfg;
-        let dims = self.field.grid.dims;
-        let ch = self.field.grid.channels;
-        let params = &self.field.grid.data;
+        let grid = &self.field.grid;
+        let dims = grid.dims;
+        let ch = grid.channels;
+        let params = &grid.data;
         if cfg.tv_density > 0.0 || cfg.tv_color > 0.0 {
-            let strides = [1usize, dims[0], dims[0] * dims[1]];
-            let nv = self.field.grid.num_vertices();
             // Reads parameters only, writes each slab's own gradients: order-independent.
-            self.grad
-                .par_chunks_mut(slab_vertices * ch)
+            split_by(&mut self.grad, bounds, ch)
+                .into_par_iter()
                 .zip(touched.par_iter())
                 .enumerate()
                 .for_each(|(si, (gslab, list))| {
-                    let v0 = si * slab_vertices;
+                    let v0 = bounds[si];
                     for &v in list {
                         let v = v as usize;
-                        let coords = [
-                            v % dims[0],
-                            (v / dims[0]) % dims[1],
-                            v / (dims[0] * dims[1]),
-                        ];
+                        let coords = grid.vertex_coords(v as u32);
                         for a in 0..3 {
                             for dir in [-1isize, 1] {
                                 let c = coords[a] as isize + dir;
                                 if c < 0 || c as usize >= dims[a] {
                                     continue;
                                 }
-                                let n = (v as isize + dir * strides[a] as isize) as usize;
-                                debug_assert!(n < nv);
+                                let mut nc = coords;
+                                nc[a] = c as usize;
+                                let n = grid.vertex_slot(nc[0], nc[1], nc[2]);
+                                if n == NONE {
+                                    continue;
+                                }
+                                let n = n as usize;
                                 let g = &mut gslab[(v - v0) * ch..(v - v0 + 1) * ch];
                                 for (j, gj) in g.iter_mut().enumerate() {
                                     let w = if j == 0 { cfg.tv_density } else { cfg.tv_color };
@@ -449,18 +466,16 @@ impl Trainer {
                 });
         }
         let step = self.adam_step();
-        let span = slab_vertices * ch;
-        self.field
-            .grid
-            .data
-            .par_chunks_mut(span)
-            .zip(self.grad.par_chunks_mut(span))
-            .zip(self.m.par_chunks_mut(span))
-            .zip(self.v.par_chunks_mut(span))
+        let ch = self.field.grid.channels;
+        split_by(&mut self.field.grid.data, bounds, ch)
+            .into_par_iter()
+            .zip(split_by(&mut self.grad, bounds, ch))
+            .zip(split_by(&mut self.m, bounds, ch))
+            .zip(split_by(&mut self.v, bounds, ch))
             .zip(touched.par_iter())
             .enumerate()
             .for_each(|(si, ((((p, g), m), v), list))| {
-                step.apply(p, g, m, v, list, si * slab_vertices, ch);
+                step.apply(p, g, m, v, list, bounds[si], ch);
             });
     }
 
@@ -479,6 +494,30 @@ impl Trainer {
         }
     }
 }
+/// The grid's slabs for one step: brick layers per slab, and each slab's first vertex (slot
+/// index; the last entry is one past the end).
+struct Slabs {
+    layers_per_slab: usize,
+    bounds: Vec<usize>,
+}
+
+impl Slabs {
+    fn count(&self) -> usize {
+        self.bounds.len() - 1
+    }
+}
+
+/// `buf` (`per` values per vertex) cut at the vertex `bounds`: one slice per slab.
+fn split_by<'a, T>(mut buf: &'a mut [T], bounds: &[usize], per: usize) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(bounds.len() - 1);
+    for w in bounds.windows(2) {
+        let (head, tail) = buf.split_at_mut((w[1] - w[0]) * per);
+        out.push(head);
+        buf = tail;
+    }
+    out
+}
+
 /// The rays of one step: `batch` drawn uniformly from the kept rays, plus `depth_batch` from
 /// those with a depth target, sorted so that a chunk's rays (one view, nearby pixels) cross the
 /// same voxels and its grid reads stay in cache (the sum over the batch does not depend on the
@@ -505,10 +544,11 @@ struct StepContext<'a> {
     step: usize,
     /// 1 / rays in the batch: the loss is a mean.
     inv_b: f32,
-    /// Vertices per z-plane, and the z-slabs the gradient records are bucketed by.
+    /// Vertices per z-plane, and the z-slabs (of brick layers) the gradient records are
+    /// bucketed by.
     plane: usize,
     nslabs: usize,
-    zper: usize,
+    layers_per_slab: usize,
 }
 
 /// One ray's loss and the gradients it hands the backward pass.
@@ -561,7 +601,7 @@ impl StepContext<'_> {
                 let k = cfg.distortion_weight * self.inv_b;
                 g_w.iter_mut().for_each(|g| *g *= k);
             }
-            let (plane, nslabs, zper) = (self.plane, self.nslabs, self.zper);
+            let (plane, nslabs, per) = (self.plane, self.nslabs, self.layers_per_slab);
             backward(
                 field,
                 &cfg.render,
@@ -573,8 +613,12 @@ impl StepContext<'_> {
                 l.g_depth,
                 &g_w,
                 |s, gr| {
+                    // The cell's corners lie in brick layers z / BRICK and (z + 1) / BRICK.
                     let z = s.base as usize / plane;
-                    let (sa, sb) = (z / zper, ((z + 1) / zper).min(nslabs - 1));
+                    let (sa, sb) = (
+                        (z / BRICK / per).min(nslabs - 1),
+                        ((z + 1) / BRICK / per).min(nslabs - 1),
+                    );
                     for b in &mut rec[sa..=sb] {
                         b.push(f32::from_bits(s.base));
                         b.extend_from_slice(&s.frac);

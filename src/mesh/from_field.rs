@@ -79,7 +79,7 @@ fn raw_at(field: &Field, p: Vec3) -> f32 {
         return EMPTY;
     }
     let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
-    if !field.occupied(field.cell_index(b)) {
+    if !field.occupied(b) {
         return EMPTY;
     }
     let k = field.grid.corners_of(b, fr);
