@@ -125,6 +125,15 @@ impl TrainCmd {
                 100.0 * s.pruned_fraction
             );
         }
+        if let Some(f) = &r.finest {
+            eprintln!(
+                "finest stage: voxel {:.5}, {} bricks x {} KiB: {}",
+                f.voxel,
+                f.bricks,
+                f.bytes_per_brick >> 10,
+                f.why
+            );
+        }
         eprintln!(
             "trained {} steps in {:.1} s ({:.0} rays/s, stopped by {}); batch PSNR {:.2} dB; {} occupied cells; {:.0} MiB; model {}",
             r.run.steps,

@@ -123,17 +123,9 @@ pub fn hull_box(views: &[View], pad: f32) -> Result<(Vec3, Vec3)> {
     Ok((lo - e, hi + e))
 }
 
-/// Voxel size for about one voxel per pixel at the median viewing distance (`per_pixel` voxels
-/// per pixel footprint), made coarser if the grid with its optimiser state (`bytes_per_vertex`)
-/// would exceed `budget` bytes. Returns (voxel, why) where `why` explains the choice.
-pub fn choose_voxel(
-    views: &[View],
-    lo: Vec3,
-    hi: Vec3,
-    per_pixel: f32,
-    bytes_per_vertex: usize,
-    budget: usize,
-) -> (f32, String) {
+/// The world length one pixel covers at the box's centre (median over the views of distance /
+/// focal), and a sentence saying so.
+pub fn pixel_footprint(views: &[View], lo: Vec3, hi: Vec3) -> (f32, String) {
     let mid = 0.5 * (lo + hi);
     let mut foot: Vec<(f32, f32, f32)> = views
         .iter()
@@ -144,11 +136,12 @@ pub fn choose_voxel(
         .collect();
     foot.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (median, dist, focal) = foot[foot.len() / 2];
-    let voxel = median / per_pixel;
-    let why = format!(
-        "one pixel at the median camera distance {dist:.3} (focal {focal:.0} px) covers {median:.5} world units; {per_pixel} voxel(s) per pixel -> voxel {voxel:.5}"
-    );
-    fit_budget(hi - lo, voxel, why, bytes_per_vertex, budget)
+    (
+        median,
+        format!(
+            "one pixel at the median camera distance {dist:.3} (focal {focal:.0} px) covers {median:.5} world units"
+        ),
+    )
 }
 
 /// Enlarge `voxel` until a grid over `extent` with `bytes_per_vertex` fits in `budget` bytes;

@@ -90,6 +90,9 @@ pub struct TrainReport {
     pub memory_bytes: usize,
     pub occupied_cells: usize,
     pub depth_targets: usize,
+    /// The finest stage's grid: resolution, bricks, bytes per brick and why (None when training
+    /// ended before it).
+    pub finest: Option<super::train::FinestStage>,
 }
 
 /// A trained field with its optimiser state, and the report.
@@ -153,6 +156,7 @@ pub fn fit_scene(
         memory_bytes: trainer.memory_bytes(),
         occupied_cells: trainer.field.occupied_cells(),
         depth_targets,
+        finest: trainer.finest.clone(),
     };
     Ok(Fitted { trainer, report })
 }
@@ -169,6 +173,19 @@ pub struct SceneFitOptions {
     /// Grow the removed masks by this many pixels (full resolution): SAM's tight edges would
     /// otherwise leave a rim of the object in the background.
     pub dilate_px: u32,
+    /// Fraction of the schedule before empty space is pruned (see [`TrainConfig::prune_after`]).
+    pub prune_after: f32,
+    /// Weight below which cells are carved before the grid grows
+    /// ([`TrainConfig::carve_weight`]).
+    pub carve_weight: f32,
+    /// Sparse points not to seed surfaces from (indices into the scene's points): the removed
+    /// objects' own.
+    pub exclude_points: std::collections::HashSet<usize>,
+    /// The coarse-to-fine stages (fraction of the schedule, grid scale); None: the trainer's.
+    pub stages: Option<Vec<(f32, f32)>>,
+    /// Weight of the distortion loss ([`TrainConfig::distortion_weight`]): it gathers each
+    /// ray's weight into one interval, against floaters.
+    pub distortion_weight: f32,
 }
 
 impl Default for SceneFitOptions {
@@ -178,6 +195,11 @@ impl Default for SceneFitOptions {
             fit: FitOptions::default(),
             removed: None,
             dilate_px: 4,
+            prune_after: 0.1,
+            carve_weight: 1e-3,
+            exclude_points: Default::default(),
+            stages: Some(vec![(0.0, 0.25), (0.25, 0.5), (0.5, 1.0)]),
+            distortion_weight: 0.0,
         }
     }
 }
@@ -209,6 +231,12 @@ pub fn fit_scene_field(
             }
         }
     }
+    // Depth targets where the loss applies (a removed object's points give none).
+    let depth_targets = match fit.depth {
+        DepthMode::None => 0,
+        DepthMode::Sparse => add_sparse_depth(&mut views, scene, fit.downscale)?,
+        DepthMode::Dense => add_dense_depth(&mut views, scene, fit.downscale)?,
+    };
     views.retain(|v| !fit.exclude_views.contains(&v.name));
     if views.is_empty() {
         return Err(Error::invalid(format!(
@@ -219,9 +247,20 @@ pub fn fit_scene_field(
     let cfg = TrainConfig {
         seed: fit.seed,
         steps: fit.steps,
+        prune_after: opts.prune_after,
+        carve_weight: opts.carve_weight,
+        stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
+        distortion_weight: opts.distortion_weight,
         ..Default::default()
     };
-    let (mut trainer, rays, setup) = prepare_scene(&views, &space, &fit.setup, cfg)?;
+    let seeds: Vec<(glam::Vec3, [u8; 3])> = scene
+        .points
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !opts.exclude_points.contains(i))
+        .map(|(_, p)| (p.xyz.as_vec3(), p.rgb))
+        .collect();
+    let (mut trainer, rays, setup) = prepare_scene(&views, &space, &fit.setup, cfg, &seeds)?;
     let stop = StopRule {
         time_budget: fit.time_budget,
         plateau_db: Some(0.01),
@@ -235,7 +274,8 @@ pub fn fit_scene_field(
         dims: trainer.field.grid.dims,
         memory_bytes: trainer.memory_bytes(),
         occupied_cells: trainer.field.occupied_cells(),
-        depth_targets: 0,
+        depth_targets,
+        finest: trainer.finest.clone(),
     };
     Ok(Fitted { trainer, report })
 }

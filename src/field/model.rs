@@ -296,31 +296,65 @@ impl Field {
         self.box_min + (Vec3::new(b[0] as f32, b[1] as f32, b[2] as f32) + 0.5) * self.voxel
     }
 
-    /// Grow the grid to `dims` (trilinear resampling); occupancy maps each new cell to the old
-    /// cell holding its centre, so carved space stays carved; only the bricks the occupied cells
-    /// need are allocated.
-    pub fn upsample(&mut self, dims: [usize; 3]) {
-        let voxel =
-            (self.box_max - self.box_min).max_element() / (dims.iter().max().unwrap() - 1) as f32;
-        let mut cells = Vec::new();
-        for z in 0..dims[2] - 1 {
-            for y in 0..dims[1] - 1 {
-                for x in 0..dims[0] - 1 {
-                    let c = self.box_min + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * voxel;
-                    let g = (c - self.box_min) / self.voxel;
-                    let (b, _) = self.grid.locate([g.x, g.y, g.z]);
-                    if self.occupied(b) {
-                        cells.push([x, y, z]);
+    /// The voxel of a grid of `dims` over this field's box (the longest axis fixes it).
+    pub fn voxel_for(&self, dims: [usize; 3]) -> f32 {
+        (self.box_max - self.box_min).max_element() / (dims.iter().max().unwrap() - 1) as f32
+    }
+
+    /// The occupied cells of a grid of `dims` over this box: each new cell takes the occupancy
+    /// of the old cell holding its centre. Work follows the occupied cells, not the box: per
+    /// axis, the new cells whose centres fall in each old cell form a range.
+    pub fn for_each_cell_at(&self, dims: [usize; 3], mut visit: impl FnMut([usize; 3])) {
+        let voxel = self.voxel_for(dims);
+        let old = self.grid.dims;
+        let ranges: Vec<Vec<(usize, usize)>> = (0..3)
+            .map(|a| {
+                let mut r = vec![(usize::MAX, 0usize); old[a] - 1];
+                for x in 0..dims[a] - 1 {
+                    // As the grid's `locate`, one axis at a time.
+                    let centre = self.box_min[a] + (x as f32 + 0.5) * voxel;
+                    let g = (centre - self.box_min[a]) / self.voxel;
+                    let i = (g.clamp(0.0, old[a] as f32 - 1.0) as usize).min(old[a] - 2);
+                    r[i] = (r[i].0.min(x), r[i].1.max(x));
+                }
+                r
+            })
+            .collect();
+        for c in self.occupied_cell_list() {
+            let (rx, ry, rz) = (ranges[0][c[0]], ranges[1][c[1]], ranges[2][c[2]]);
+            if rx.0 > rx.1 || ry.0 > ry.1 || rz.0 > rz.1 {
+                continue;
+            }
+            for z in rz.0..=rz.1 {
+                for y in ry.0..=ry.1 {
+                    for x in rx.0..=rx.1 {
+                        visit([x, y, z]);
                     }
                 }
             }
         }
+    }
+
+    /// Bricks a grid of `dims` over this box would allocate for the occupied cells.
+    pub fn bricks_at(&self, dims: [usize; 3]) -> usize {
+        let mut need = vec![false; dims.map(|d| d.div_ceil(BRICK)).iter().product()];
+        let bd = dims.map(|d| d.div_ceil(BRICK));
+        self.for_each_cell_at(dims, |c| mark_corner_bricks(&mut need, bd, c));
+        need.iter().filter(|&&n| n).count()
+    }
+
+    /// Grow the grid to `dims` (trilinear resampling); occupancy maps each new cell to the old
+    /// cell holding its centre, so carved space stays carved; only the bricks the occupied cells
+    /// need are allocated.
+    pub fn upsample(&mut self, dims: [usize; 3]) {
+        let mut cells = Vec::new();
+        self.for_each_cell_at(dims, |c| cells.push(c));
         let need = Field::needed_bricks(dims, &cells);
         let bd = dims.map(|d| d.div_ceil(BRICK));
         self.grid = self
             .grid
             .resampled(dims, |b| need[b[0] + bd[0] * (b[1] + bd[1] * b[2])]);
-        self.voxel = voxel;
+        self.voxel = self.voxel_for(dims);
         // The box is re-derived from the dims so that vertices still span it exactly.
         self.box_max = self.box_min
             + Vec3::new(
@@ -337,6 +371,23 @@ impl Field {
     /// Bytes held by the parameters (not counting optimiser state).
     pub fn param_bytes(&self) -> usize {
         self.grid.data.len() * 4 + self.occupancy.len() * 8
+    }
+}
+
+/// Mark the bricks holding the 8 corners of cell `c` in a brick map of `bd` bricks.
+#[inline]
+fn mark_corner_bricks(need: &mut [bool], bd: [usize; 3], c: [usize; 3]) {
+    for dz in 0..2 {
+        for dy in 0..2 {
+            for dx in 0..2 {
+                let b = [
+                    (c[0] + dx) / BRICK,
+                    (c[1] + dy) / BRICK,
+                    (c[2] + dz) / BRICK,
+                ];
+                need[b[0] + bd[0] * (b[1] + bd[1] * b[2])] = true;
+            }
+        }
     }
 }
 

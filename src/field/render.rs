@@ -61,27 +61,6 @@ pub struct RayOut {
     pub depth: f32,
 }
 
-/// Intersect a ray with an axis-aligned box: (t_near, t_far) with t_near >= 0, if it hits.
-#[inline]
-pub fn ray_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
-    let inv = d.recip();
-    let t0 = (lo - o) * inv;
-    let t1 = (hi - o) * inv;
-    let tmin = t0.min(t1);
-    let tmax = t0.max(t1);
-    // NaN (0 * inf, a ray in a box face's plane) must not decide the interval: max/min of glam
-    // ignore NaNs only partly, so fall back to "no constraint" for such axes.
-    let pick = |a: f32, fallback: f32| if a.is_nan() { fallback } else { a };
-    let tn = pick(tmin.x, f32::MIN)
-        .max(pick(tmin.y, f32::MIN))
-        .max(pick(tmin.z, f32::MIN))
-        .max(0.0);
-    let tf = pick(tmax.x, f32::MAX)
-        .min(pick(tmax.y, f32::MAX))
-        .min(pick(tmax.z, f32::MAX));
-    (tf > tn).then_some((tn, tf))
-}
-
 /// March one ray (unit world direction `d`), composite on `bg`, and record the kept samples.
 /// `jitter` in [0, 1) offsets the first sample by that fraction of a step. The samples' `t` is
 /// the distance along the world ray, in every [`Space`](super::space::Space).
@@ -356,6 +335,7 @@ pub fn render_ray(
 #[cfg(test)]
 mod tests {
     use super::super::model::FieldConfig;
+    use super::super::space::ray_box;
     use super::*;
     use crate::util::Rng;
 

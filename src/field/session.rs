@@ -2,7 +2,7 @@
 //! memory budget) → carved occupancy → rays pruned to the box → a [`Trainer`] run until the step
 //! count, a time budget or a PSNR plateau.
 
-use super::bounds::{choose_voxel, fit_budget, hull_box, visual_hull};
+use super::bounds::{fit_budget, hull_box, pixel_footprint, visual_hull};
 use super::layout::SpaceSetup;
 use super::model::{Field, FieldConfig};
 use super::rays::RaySet;
@@ -71,16 +71,8 @@ pub fn prepare(
     cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     let (lo, hi) = hull_box(views, setup.pad)?;
-    let bytes_per_vertex = setup.bytes_per_vertex();
-    let (voxel, why) = choose_voxel(
-        views,
-        lo,
-        hi,
-        setup.voxels_per_pixel,
-        bytes_per_vertex,
-        setup.memory_budget,
-    );
-    let plan = GridPlan::new(lo, hi, voxel, why, bytes_per_vertex);
+    let (footprint, why) = pixel_footprint(views, lo, hi);
+    let plan = GridPlan::new(lo, hi, footprint, why, setup, &cfg);
     let mut field = plan.field(setup, Space::Box, &cfg);
     let dims0 = field.grid.dims;
     let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
@@ -95,7 +87,7 @@ pub fn prepare(
     let hull_cells = keep.iter().filter(|&&k| k).count();
     let rays = RaySet::build(views, &field);
     let report = plan.report(&field, &rays, hull_cells);
-    Ok((Trainer::new(field, plan.final_dims, cfg), rays, report))
+    Ok((plan.trainer(field, setup, cfg), rays, report))
 }
 
 /// Build the trainer for a scene field in `space` (box in space coordinates, the pixel
@@ -106,22 +98,22 @@ pub fn prepare_scene(
     space: &SpaceSetup,
     setup: &SetupConfig,
     cfg: TrainConfig,
+    seeds: &[(Vec3, [u8; 3])],
 ) -> Result<(Trainer, RaySet, SetupReport)> {
-    let bytes_per_vertex = setup.bytes_per_vertex();
-    let voxel = space.pixel_footprint / setup.voxels_per_pixel;
     let why = format!(
-        "{}; one pixel covers {:.5} space units; {} voxel(s) per pixel -> voxel {voxel:.5}",
-        space.why, space.pixel_footprint, setup.voxels_per_pixel
+        "{}; one pixel covers {:.5} space units",
+        space.why, space.pixel_footprint
     );
-    let (voxel, why) = fit_budget(
-        space.box_max - space.box_min,
-        voxel,
+    let plan = GridPlan::new(
+        space.box_min,
+        space.box_max,
+        space.pixel_footprint,
         why,
-        bytes_per_vertex,
-        setup.memory_budget,
+        setup,
+        &cfg,
     );
-    let plan = GridPlan::new(space.box_min, space.box_max, voxel, why, bytes_per_vertex);
-    let field = plan.field(setup, space.space.clone(), &cfg);
+    let mut field = plan.field(setup, space.space.clone(), &cfg);
+    seed_surfaces(&mut field, seeds);
     let rays = RaySet::build(views, &field);
     if rays.rays.is_empty() {
         return Err(crate::error::Error::invalid(
@@ -129,7 +121,45 @@ pub fn prepare_scene(
         ));
     }
     let report = plan.report(&field, &rays, field.num_cells());
-    Ok((Trainer::new(field, plan.final_dims, cfg), rays, report))
+    Ok((plan.trainer(field, setup, cfg), rays, report))
+}
+
+/// Raw density that makes one finest voxel this opaque where a sparse point was seen.
+const SEED_ALPHA: f32 = 0.3;
+
+/// Start a scene field from its sparse points: the corners of every cell holding a point get a
+/// density (one voxel [`SEED_ALPHA`] opaque) and the point's colour as their view-independent
+/// colour, so the first rays already stop near the right depth with about the right colour
+/// (from a transparent start, training takes most of its time finding the surfaces).
+fn seed_surfaces(field: &mut Field, seeds: &[(Vec3, [u8; 3])]) {
+    let sp = -(1.0 - SEED_ALPHA).ln();
+    let raw = sp.exp_m1().ln() - field.shift();
+    let k = field.sh_k();
+    let ch = field.grid.channels;
+    // sigmoid(C0 * dc) = colour
+    const C0: f32 = 0.282_094_8;
+    for (p, rgb) in seeds {
+        let g = field.to_grid(*p);
+        let d = field.grid.dims;
+        if (0..3).any(|a| g[a] < 0.0 || g[a] >= (d[a] - 1) as f32) {
+            continue;
+        }
+        let (b, _) = field.grid.locate([g.x, g.y, g.z]);
+        for i in 0..8 {
+            let v = field
+                .grid
+                .vertex_slot(b[0] + (i & 1), b[1] + ((i >> 1) & 1), b[2] + (i >> 2));
+            if v == super::grid::NONE {
+                continue;
+            }
+            let vals = &mut field.grid.data[v as usize * ch..(v as usize + 1) * ch];
+            vals[0] = vals[0].max(raw);
+            for c in 0..3 {
+                let x = (rgb[c] as f32 / 255.0).clamp(0.02, 0.98);
+                vals[1 + c * k] = (x / (1.0 - x)).ln() / C0;
+            }
+        }
+    }
 }
 
 /// A grid over a box: its finest dims (cells a multiple of 4 so coarse stages nest exactly) and
@@ -143,12 +173,38 @@ struct GridPlan {
 }
 
 impl GridPlan {
-    fn new(lo: Vec3, hi: Vec3, voxel: f32, mut why: String, bytes_per_vertex: usize) -> Self {
+    /// The finest voxel: `footprint / voxels_per_pixel`, made coarser only when the first stage
+    /// (dense, at the schedule's first scale) would not fit the memory budget. The finest stage
+    /// is sparse: when it starts, the trainer fits its resolution to the budget by the bricks
+    /// the occupied cells need ([`Trainer::budget`]).
+    fn new(
+        lo: Vec3,
+        hi: Vec3,
+        footprint: f32,
+        why: String,
+        setup: &SetupConfig,
+        cfg: &TrainConfig,
+    ) -> Self {
+        let bytes_per_vertex = setup.bytes_per_vertex();
+        let coarse = cfg.stages.first().map(|s| s.1).unwrap_or(1.0).min(1.0);
+        let target = footprint / setup.voxels_per_pixel;
+        let why = format!(
+            "{why}; {} voxel(s) per pixel -> voxel {target:.5}; the first stage at {coarse} of that resolution is dense",
+            setup.voxels_per_pixel
+        );
+        let (coarse_voxel, mut why) = fit_budget(
+            hi - lo,
+            target / coarse,
+            why,
+            bytes_per_vertex,
+            setup.memory_budget,
+        );
+        let voxel = coarse_voxel * coarse;
         let e = hi - lo;
         let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
         let vertices: usize = final_dims.iter().product();
         why += &format!(
-            "; box {:.3} x {:.3} x {:.3} -> {} x {} x {} vertices ({:.1} M, {} MiB with optimiser state)",
+            "; box {:.3} x {:.3} x {:.3} -> at most {} x {} x {} vertices ({:.1} M if dense); the finest stage keeps the bricks it needs within the {} MiB budget",
             e.x,
             e.y,
             e.z,
@@ -156,7 +212,7 @@ impl GridPlan {
             final_dims[1],
             final_dims[2],
             vertices as f64 / 1e6,
-            (vertices * bytes_per_vertex) >> 20
+            setup.memory_budget >> 20
         );
         let hi = lo
             + Vec3::new(
@@ -171,6 +227,12 @@ impl GridPlan {
             final_dims,
             why,
         }
+    }
+
+    fn trainer(&self, field: Field, setup: &SetupConfig, cfg: TrainConfig) -> Trainer {
+        let mut t = Trainer::new(field, self.final_dims, cfg);
+        t.budget = Some(setup.memory_budget);
+        t
     }
 
     /// The field at the first coarse-to-fine stage.

@@ -54,6 +54,27 @@ const MAX_CONTRACTED: f32 = 1.99;
 /// Most samples on one ray in contracted space (a ray grazing the inner ball's edge).
 const MAX_CONTRACTED_SAMPLES: usize = 8192;
 
+/// Intersect a ray with an axis-aligned box: (t_near, t_far) with t_near >= 0, if it hits.
+#[inline]
+pub fn ray_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
+    let inv = d.recip();
+    let t0 = (lo - o) * inv;
+    let t1 = (hi - o) * inv;
+    let tmin = t0.min(t1);
+    let tmax = t0.max(t1);
+    // NaN (0 * inf, a ray in a box face's plane) must not decide the interval: max/min of glam
+    // ignore NaNs only partly, so fall back to "no constraint" for such axes.
+    let pick = |a: f32, fallback: f32| if a.is_nan() { fallback } else { a };
+    let tn = pick(tmin.x, f32::MIN)
+        .max(pick(tmin.y, f32::MIN))
+        .max(pick(tmin.z, f32::MIN))
+        .max(0.0);
+    let tf = pick(tmax.x, f32::MAX)
+        .min(pick(tmax.y, f32::MAX))
+        .min(pick(tmax.z, f32::MAX));
+    (tf > tn).then_some((tn, tf))
+}
+
 /// How a ray's samples are placed in space coordinates.
 #[derive(Clone, Copy, Debug)]
 pub enum RayPath {
@@ -168,7 +189,7 @@ impl Space {
     pub fn ray_path(&self, o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<RayPath> {
         match self {
             Space::Box => {
-                let (s0, s1) = super::render::ray_box(o, d, lo, hi)?;
+                let (s0, s1) = ray_box(o, d, lo, hi)?;
                 Some(RayPath::Line {
                     o,
                     d,
@@ -202,7 +223,7 @@ impl Space {
                     return None;
                 }
                 let dir = span / len;
-                let (b0, b1) = super::render::ray_box(start, dir, lo, hi)?;
+                let (b0, b1) = ray_box(start, dir, lo, hi)?;
                 let (s0, s1) = (b0.max(0.0), b1.min(len));
                 (s1 > s0).then_some(RayPath::Line {
                     o: start,

@@ -1,0 +1,105 @@
+//! Scene field on the demo scene: train on all views but every 6th, score the held-out ones
+//! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
+//! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_SPACE, SF_STEPS, SF_STAGES.
+//!
+//! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
+
+#[path = "support/bench.rs"]
+mod bench;
+
+use objnerf::field::eval::evaluate;
+use objnerf::field::holdout::is_held_out;
+use objnerf::field::{
+    fit_scene_field, load_views, FitOptions, MaskSource, RenderOptions, SceneFitOptions,
+    SetupConfig,
+};
+use std::path::PathBuf;
+
+fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
+    std::env::var(name).ok().and_then(|v| v.parse().ok())
+}
+
+fn main() -> objnerf::Result<()> {
+    let dir = PathBuf::from(std::env::args().nth(1).unwrap_or("runs/demo/scene".into()));
+    let scene = objnerf::Scene::load(&dir)?;
+    let downscale: u32 = env("SF_DOWNSCALE").unwrap_or(1);
+    let mut setup = SetupConfig::default();
+    if let Some(a) = env("SF_ALPHA_INIT") {
+        setup.alpha_init = a;
+    }
+    if let Some(d) = env("SF_SH") {
+        setup.sh_degree = d;
+    }
+    if let Some(m) = env::<usize>("SF_MEM_MB") {
+        setup.memory_budget = m << 20;
+    }
+    let held: Vec<String> = scene
+        .images
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| is_held_out(*i, 6))
+        .map(|(_, im)| im.name.clone())
+        .collect();
+    let mut opts = SceneFitOptions {
+        space: env("SF_SPACE").unwrap_or_default(),
+        fit: FitOptions {
+            downscale,
+            time_budget: Some(env("SF_SECONDS").unwrap_or(120.0)),
+            steps: env("SF_STEPS").unwrap_or(20_000),
+            setup,
+            exclude_views: held.clone(),
+            depth: env("SF_DEPTH").unwrap_or(objnerf::field::DepthMode::None),
+            ..Default::default()
+        },
+        prune_after: env("SF_PRUNE_AFTER").unwrap_or(0.1),
+        carve_weight: env("SF_CARVE").unwrap_or(1e-3),
+        distortion_weight: env("SF_DIST").unwrap_or(0.0),
+        ..Default::default()
+    };
+    // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").
+    if let Ok(st) = std::env::var("SF_STAGES") {
+        opts.stages = Some(
+            st.split(',')
+                .filter_map(|p| p.split_once(':'))
+                .filter_map(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+                .collect(),
+        );
+    }
+    let cpu0 = bench::cpu_seconds();
+    let t0 = std::time::Instant::now();
+    let mut last = 0.0;
+    let fitted = fit_scene_field(&scene, &opts, &mut |s| {
+        if s.seconds >= last {
+            eprintln!("t={:.0}s step={} psnr={:.2}", s.seconds, s.step, s.psnr);
+            last = s.seconds + 20.0;
+        }
+    })?;
+    let train_s = t0.elapsed().as_secs_f64();
+    if let Ok(path) = std::env::var("SF_SAVE") {
+        let notes = objnerf::field::model_notes(
+            objnerf::field::FieldKind::Scene,
+            &scene,
+            &opts.fit,
+            &fitted.report,
+        );
+        objnerf::field::io::save(
+            std::path::Path::new(&path),
+            &fitted.trainer.parts(objnerf::field::io::IDENTITY, notes),
+        )?;
+    }
+    let views: Vec<_> = load_views(&scene, &MaskSource::Opaque, downscale)?
+        .into_iter()
+        .filter(|v| held.contains(&v.name))
+        .collect();
+    let ev = evaluate(&fitted.trainer.field, &RenderOptions::default(), &views);
+    let out = serde_json::json!({
+        "downscale": downscale, "train_s": train_s, "cpu_s": bench::cpu_seconds() - cpu0,
+        "steps": fitted.report.run.steps, "heldout_psnr": ev.psnr, "heldout_ssim": ev.ssim,
+        "finest": fitted.report.finest, "occupied_cells": fitted.report.occupied_cells,
+        "memory_mb": fitted.report.memory_bytes >> 20,
+        "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
+        "space": fitted.report.setup.as_ref().map(|s| s.space.name()),
+    });
+    println!("{out}");
+    Ok(())
+}
