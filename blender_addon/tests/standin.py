@@ -8,6 +8,9 @@ NOT a renderer. It writes the documented layout of docs/edit-format.md:
   documented; written by `write_exr_y` below, not by Blender, so Blender's reading of such a file
   is tested); alpha_ and index_NNNNN.png; camera_path.json.
 
+Every other command (`export nerfstudio`, which importing a COLMAP run needs, `--help`) is passed
+on to the real objnerf binary given to `write`, so only render-edit is stood in for.
+
 Modes (environment): STANDIN_FAIL=1 exits 1 with a message on stderr; STANDIN_SLOW=s sleeps s
 seconds per frame (for cancelling).
 """
@@ -23,7 +26,8 @@ sys.path.insert(0, {addon_dir!r})
 sys.path.insert(0, {tests_dir!r})
 from standin import write_exr_y
 args = sys.argv[1:]
-assert args[0] == "render-edit", args
+if not args or args[0] != "render-edit":
+    os.execv({real!r}, [{real!r}, *args])
 edit, opts = args[1], dict(zip(args[2::2], args[3::2]))
 if os.environ.get("STANDIN_FAIL"):
     sys.stderr.write("error: " + edit + ": objects[0].model: the model file is missing\\n")
@@ -85,11 +89,12 @@ def write_exr_y(path, depth):
         f.write(header + offsets + rows)
 
 
-def write(folder, addon_dir):
-    """Write the stand-in as `folder/objnerf` (executable) and return its path."""
+def write(folder, addon_dir, real):
+    """Write the stand-in as `folder/objnerf` (executable) and return its path; commands other
+    than render-edit run the `real` objnerf binary."""
     path = os.path.join(folder, "objnerf")
     with open(path, "w") as f:
         f.write(TEMPLATE.format(python=sys.executable, addon_dir=addon_dir,
-                                tests_dir=os.path.dirname(os.path.abspath(__file__))))
+                                tests_dir=os.path.dirname(os.path.abspath(__file__)), real=real))
     os.chmod(path, os.stat(path).st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
     return path

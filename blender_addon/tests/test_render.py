@@ -50,7 +50,7 @@ def render_composite(path):
 
 
 def test_render_edit_with_stand_in_composites_by_depth(prefs, demo_run, tmp_path):
-    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR, prefs.binary)
     cam = setup_scene(demo_run)
     work = tmp_path / "work"
     assert bpy.ops.objnerf.render_edit(directory=str(work)) == {"FINISHED"}
@@ -78,7 +78,7 @@ def test_render_edit_with_stand_in_composites_by_depth(prefs, demo_run, tmp_path
 
 
 def test_load_render_operator_reads_a_folder(prefs, demo_run, tmp_path):
-    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR, prefs.binary)
     setup_scene(demo_run, n_frames=2)
     render.start_job(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))[0].wait()
     assert bpy.ops.objnerf.load_render(directory=str(tmp_path / "w" / "render")) == {"FINISHED"}
@@ -89,7 +89,7 @@ def test_load_render_operator_reads_a_folder(prefs, demo_run, tmp_path):
 
 
 def test_failing_render_reports_its_stderr(prefs, demo_run, tmp_path, monkeypatch):
-    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR, prefs.binary)
     setup_scene(demo_run)
     monkeypatch.setenv("STANDIN_FAIL", "1")
     with pytest.raises(RuntimeError, match=r"render-edit' failed \(exit 1\): error: .*the model file is missing"):
@@ -98,14 +98,14 @@ def test_failing_render_reports_its_stderr(prefs, demo_run, tmp_path, monkeypatc
 
 def test_invoke_without_a_window_runs_to_the_end(prefs, demo_run, tmp_path):
     """In background mode there is no window for a modal timer: invoke falls back to execute."""
-    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR, prefs.binary)
     setup_scene(demo_run, n_frames=2)
     assert bpy.ops.objnerf.render_edit("INVOKE_DEFAULT", directory=str(tmp_path / "w")) == {"FINISHED"}
 
 
 def test_modal_session_on_timer_events(prefs, demo_run, tmp_path):
     """What the modal operator does per event, driven here without Blender's event loop."""
-    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR, prefs.binary)
     setup_scene(demo_run, n_frames=3)
     session = render.RenderSession(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))
     assert session.tick(bpy.context, "MOUSEMOVE") == "PASS"
@@ -118,7 +118,7 @@ def test_modal_session_on_timer_events(prefs, demo_run, tmp_path):
 
 
 def test_cancel_stops_the_render(prefs, demo_run, tmp_path, monkeypatch):
-    prefs.binary = standin.write(str(tmp_path), ADDON_DIR)
+    prefs.binary = standin.write(str(tmp_path), ADDON_DIR, prefs.binary)
     setup_scene(demo_run, n_frames=4)
     monkeypatch.setenv("STANDIN_SLOW", "1.0")
     session = render.RenderSession(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))
@@ -137,7 +137,8 @@ def test_cancel_stops_the_render(prefs, demo_run, tmp_path, monkeypatch):
 
 def test_render_without_binary_is_a_report(addon, demo_run, objnerf_bin, tmp_path):
     p = bpy.context.preferences.addons["objnerf_blender"].preferences
-    p.binary = str(tmp_path / "missing" / "objnerf")
+    p.binary = objnerf_bin  # importing a COLMAP run needs the binary (export nerfstudio)
     setup_scene(demo_run, n_frames=1)
+    p.binary = str(tmp_path / "missing" / "objnerf")
     with pytest.raises(RuntimeError, match="objnerf binary not found"):
         bpy.ops.objnerf.render_edit(directory=str(tmp_path / "w"))

@@ -68,27 +68,50 @@ pub fn add_dense_depth(views: &mut [View], scene: &Scene, downscale: u32) -> Res
                 )));
             };
             let dm = crate::scene::io::read_depth(path, scene.depth_scale)?;
-            if dm.width / f != v.width || dm.height / f != v.height {
+            // Depth maps may be smaller (or larger) than their photos, as a phone's LiDAR depth
+            // is (256x192 beside 1920x1440): each view pixel takes the depth pixels whose
+            // centres fall in its footprint, or the nearest one (nerfstudio resizes depth to
+            // the image, nearest). Only the shape must agree.
+            let cam = scene.camera_of(im);
+            let (sx, sy) = (
+                dm.width as f64 / cam.width as f64,
+                dm.height as f64 / cam.height as f64,
+            );
+            if dm.width == 0 || dm.height == 0 || (sx / sy - 1.0).abs() > 0.02 {
                 return Err(Error::format(
                     path,
                     format!(
-                        "depth is {}x{}, the view is {}x{} after downscaling by {f}",
-                        dm.width, dm.height, v.width, v.height
+                        "depth is {}x{} but its image {}x{}: the aspect ratios differ",
+                        dm.width, dm.height, cam.width, cam.height
                     ),
                 ));
             }
+            // Depth pixels whose centres lie in [lo, hi) (in depth pixels), else the nearest.
+            let span = |lo: f64, hi: f64, n: u32| -> std::ops::Range<u32> {
+                let a = ((lo - 0.5).ceil().max(0.0) as u32).min(n);
+                let b = ((hi - 0.5).ceil().max(0.0) as u32).min(n);
+                if a < b {
+                    a..b
+                } else {
+                    let c = ((0.5 * (lo + hi)).floor().max(0.0) as u32).min(n - 1);
+                    c..c + 1
+                }
+            };
+            let ff = f as f64;
             let mut d = vec![0f32; (v.width * v.height) as usize];
             let mut n = 0;
             for row in 0..v.height {
+                let ys = span(row as f64 * ff * sy, (row + 1) as f64 * ff * sy, dm.height);
                 for col in 0..v.width {
                     let idx = row * v.width + col;
                     if v.rgba[idx as usize][3] < 128 {
                         continue;
                     }
+                    let xs = span(col as f64 * ff * sx, (col + 1) as f64 * ff * sx, dm.width);
                     let (mut sum, mut cnt) = (0f64, 0u32);
-                    for yy in 0..f {
-                        for xx in 0..f {
-                            let z = dm.metres[((row * f + yy) * dm.width + col * f + xx) as usize];
+                    for y in ys.clone() {
+                        for x in xs.clone() {
+                            let z = dm.metres[(y * dm.width + x) as usize];
                             if z.is_finite() && z > 0.0 {
                                 sum += z as f64;
                                 cnt += 1;
@@ -96,7 +119,7 @@ pub fn add_dense_depth(views: &mut [View], scene: &Scene, downscale: u32) -> Res
                         }
                     }
                     // Half the block valid at least, or edges mix foreground and holes.
-                    if cnt * 2 >= f * f {
+                    if cnt * 2 >= ys.len() as u32 * xs.len() as u32 {
                         d[idx as usize] = (sum / cnt as f64) as f32 * v.ray_scale(idx);
                         n += 1;
                     }
@@ -192,5 +215,80 @@ mod tests {
             let hz = pose.world_to_camera(hit.as_dvec3()).z as f32;
             assert!((hz - z).abs() < 1e-4, "{hz} vs {z}");
         }
+    }
+
+    /// A depth map at a quarter of its photo's size (a phone's LiDAR depth beside its photo)
+    /// gives every masked pixel the depth of the depth pixel under it, at any downscale; a depth
+    /// map of another shape is refused.
+    #[test]
+    fn dense_depth_smaller_than_the_photo() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (40u32, 32u32);
+        let cam = Camera::pinhole(w, h, 40.0, 40.0, 20.0, 16.0);
+        let pose = Pose::look_at(DVec3::new(0.0, 0.0, -3.0), DVec3::ZERO, DVec3::Y);
+        // Depth 1 m on the left half, 2 m on the right, at 10x8.
+        let dm = crate::scene::io::DepthMap {
+            width: 10,
+            height: 8,
+            metres: (0..80)
+                .map(|i| if i % 10 < 5 { 1.0 } else { 2.0 })
+                .collect(),
+        };
+        let depth = dir.path().join("d.png");
+        crate::scene::io::write_depth_png_mm(&depth, &dm).unwrap();
+        let mut scene = Scene {
+            source: "mem".into(),
+            format: SourceFormat::Demo,
+            cameras: vec![SceneCamera {
+                id: 1,
+                camera: cam.clone(),
+            }],
+            images: vec![ImageView {
+                id: 1,
+                name: "a".into(),
+                path: "a.png".into(),
+                camera: 0,
+                pose,
+                mask_path: None,
+                depth_path: Some(depth.clone()),
+                features: Vec::new(),
+            }],
+            points: Vec::new(),
+            depth_scale: 1000.0,
+            applied_transform: None,
+        };
+        for f in [1u32, 2, 3] {
+            let c = cam.binned(f);
+            let rgba = vec![[9, 9, 9, 255]; (c.width * c.height) as usize];
+            let mut views = vec![View::new("a".into(), c.clone(), pose, rgba)];
+            let n = add_dense_depth(&mut views, &scene, f).unwrap();
+            assert_eq!(n, (c.width * c.height) as usize, "factor {f}");
+            let d = views[0].depth.as_ref().unwrap();
+            for row in 0..c.height {
+                for col in 0..c.width {
+                    let idx = row * c.width + col;
+                    // The full-size pixel under this one's centre, then the depth pixel under that.
+                    let u = (col as f64 + 0.5) * f as f64;
+                    let want = if u < 20.0 { 1.0 } else { 2.0 };
+                    let z = d[idx as usize] / views[0].ray_scale(idx);
+                    // A view pixel straddling the edge averages both sides.
+                    let straddles = ((col * f) as f64) < 20.0 && (((col + 1) * f) as f64) > 20.0;
+                    assert!(straddles || (z - want).abs() < 1e-3, "{f} {col} {row}: {z}");
+                }
+            }
+        }
+        let dm = crate::scene::io::DepthMap {
+            width: 16,
+            height: 8,
+            metres: vec![1.0; 128],
+        };
+        crate::scene::io::write_depth_png_mm(&depth, &dm).unwrap();
+        scene.images[0].depth_path = Some(depth);
+        let rgba = vec![[9, 9, 9, 255]; (w * h) as usize];
+        let mut views = vec![View::new("a".into(), cam, pose, rgba)];
+        let e = add_dense_depth(&mut views, &scene, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("aspect"), "{e}");
     }
 }

@@ -293,7 +293,18 @@ pub fn load_field(path: &Path) -> Result<Model> {
 fn read(path: &Path, with_adam: bool) -> Result<Model> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let total = file.metadata().map_err(|e| Error::io(path, e))?.len();
-    let mut r = std::io::BufReader::with_capacity(1 << 20, file);
+    let r = std::io::BufReader::with_capacity(1 << 20, file);
+    read_from(path, r, total, with_adam)
+}
+
+/// A model from a stream of `total` bytes, as [`load`] (`with_adam`) or [`load_field`] read it
+/// from a file; `path` names the file in errors.
+pub fn read_from<R: std::io::Read + std::io::Seek>(
+    path: &Path,
+    mut r: R,
+    total: u64,
+    with_adam: bool,
+) -> Result<Model> {
     let (h, start) = read_header(path, &mut r, total)?;
     let mut arrays = read_arrays(path, &mut r, &h, start, total, with_adam)?;
     let bad = |msg: String| Error::format(path, msg);
@@ -479,12 +490,20 @@ fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(H
         .try_fold(1u64, |a, &d| a.checked_mul(d as u64));
     if h.dims.iter().any(|&d| d < 2)
         || box_vertices.is_none_or(|n| n > 1 << 32)
-        || h.voxel.is_nan()
+        || !h.voxel.is_finite()
         || h.voxel <= 0.0
     {
         return Err(bad(format!(
             "inconsistent header: dims {:?}, voxel {}",
             h.dims, h.voxel
+        )));
+    }
+    if (0..3).any(|i| !(h.box_min[i].is_finite() && h.box_max[i].is_finite()))
+        || (0..3).any(|i| h.box_max[i] <= h.box_min[i])
+    {
+        return Err(bad(format!(
+            "inconsistent header: box {:?} to {:?} is not a finite, non-empty box",
+            h.box_min, h.box_max
         )));
     }
     Ok((h, 16 + hlen))
@@ -521,7 +540,7 @@ fn read_arrays<R: std::io::Read + std::io::Seek>(
         let n = a
             .len
             .checked_mul(size)
-            .filter(|&n| pos + n <= total)
+            .filter(|&n| pos.checked_add(n).is_some_and(|end| end <= total))
             .ok_or_else(|| {
                 bad(format!(
                     "truncated: array '{}' needs {} bytes but only {} remain",

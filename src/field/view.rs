@@ -129,15 +129,7 @@ impl RayCamera {
         scene
             .images
             .iter()
-            .map(|im| {
-                let cam = scene.camera_of(im);
-                let cam = if factor > 1 {
-                    cam.downscaled(factor)
-                } else {
-                    cam.clone()
-                };
-                RayCamera::new(im.name.clone(), cam, im.pose)
-            })
+            .map(|im| RayCamera::new(im.name.clone(), scene.camera_of(im).binned(factor), im.pose))
             .collect()
     }
 
@@ -257,18 +249,17 @@ pub fn load_views(scene: &Scene, masks: &MaskSource, factor: u32) -> Result<Vec<
                     p.0[3] = q.0[0];
                 }
             }
-            let (dw, dh, data) = downscale_premultiplied(&rgba, factor);
-            let camera = if factor > 1 {
-                cam.downscaled(factor)
-            } else {
-                cam.clone()
-            };
-            if (camera.width, camera.height) != (dw, dh) {
+            if w < factor || h < factor {
                 return Err(Error::invalid(format!(
-                    "{}: downscaling by {factor} gives {dw}x{dh} pixels but the camera {}x{}; use a factor that divides the image size",
-                    im.name, camera.width, camera.height
+                    "{}: --downscale {factor} leaves no pixels of a {w}x{h} image",
+                    im.name
                 )));
             }
+            // Sizes that the factor does not divide lose their last columns/rows (as nerfstudio
+            // floors them); the camera is binned to match.
+            let (dw, dh, data) = downscale_premultiplied(&rgba, factor);
+            let camera = cam.binned(factor);
+            debug_assert_eq!((camera.width, camera.height), (dw, dh));
             Ok(View::new(im.name.clone(), camera, im.pose, data))
         })
         .collect()

@@ -136,10 +136,14 @@ fn decode(b: &[u8], key: &str) -> Option<Embedding> {
     if len != EMBED_LEN || b.len() != 28 + 4 * len {
         return None;
     }
-    let data = b[28..]
+    let data: Vec<f32> = b[28..]
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect();
+    // A flipped bit can make a NaN, which SAM would turn into a silently empty mask.
+    if !data.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     Some(Embedding {
         data,
         width,
@@ -187,6 +191,12 @@ mod tests {
         assert_eq!((back.width, back.height, back.scale), (7, 3, e.scale));
         std::fs::write(dir.path().join("abc.emb"), b"ONSAMEMBgarbage").unwrap();
         cache.clear_memory();
+        assert!(cache.get("abc").is_none());
+        // A NaN (a flipped exponent bit) is a miss too.
+        let mut bytes = encode(&e);
+        bytes[28 + 4 * 9 + 3] = 0x7f;
+        bytes[28 + 4 * 9 + 2] = 0xc0;
+        std::fs::write(dir.path().join("abc.emb"), bytes).unwrap();
         assert!(cache.get("abc").is_none());
         assert_eq!(clear_disk(dir.path()).unwrap(), 1);
     }

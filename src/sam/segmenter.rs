@@ -124,7 +124,11 @@ impl Segmenter {
             return Err(Error::invalid("cannot segment an empty (0-pixel) image"));
         }
         let key = embedding_key(img, &self.encoder_sha256);
-        if let Some(e) = self.cache.get(&key) {
+        // A disk entry is only as good as its bytes: one for another size is a miss.
+        let fits = |e: &Embedding| {
+            (e.width, e.height) == img.dimensions() && e.scale.is_finite() && e.scale > 0.0
+        };
+        if let Some(e) = self.cache.get(&key).filter(|e| fits(e)) {
             return Ok((
                 e,
                 EmbedInfo {

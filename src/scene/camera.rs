@@ -363,6 +363,28 @@ impl Camera {
         }
     }
 
+    /// The camera for images binned by an integer factor: each output pixel averages a `factor`
+    /// x `factor` block, the last columns and rows that do not fill a block are dropped (the size
+    /// is floor(W / factor) x floor(H / factor), as nerfstudio sizes its downscaled images), so
+    /// every intrinsic scales by exactly 1/factor (nerfstudio's `rescale_output_resolution`):
+    /// pixel centre u' + 0.5 of the binned image is u = factor * (u' + 0.5) of the original.
+    /// This is how training, rendering and evaluation downscale (`field::rays::load_views`).
+    pub fn binned(&self, factor: u32) -> Camera {
+        let f = factor.max(1);
+        let s = 1.0 / f as f64;
+        let mut params = self.params.clone();
+        let n = if self.model.single_focal() { 3 } else { 4 };
+        for p in &mut params[..n] {
+            *p *= s;
+        }
+        Camera {
+            model: self.model,
+            width: self.width / f,
+            height: self.height / f,
+            params,
+        }
+    }
+
     /// The camera for images downscaled by an integer factor (sizes rounded as image resizers do).
     pub fn downscaled(&self, factor: u32) -> Camera {
         let f = factor.max(1);
@@ -453,6 +475,27 @@ mod tests {
             )
             .unwrap(),
         ]
+    }
+
+    /// Binning by f (sizes floored, intrinsics / f) puts every point at the original pixel / f,
+    /// for every model (distortion acts on normalised coordinates and is unchanged).
+    #[test]
+    fn binned_projects_to_the_pixel_over_f() {
+        for cam in cameras() {
+            let cam = Camera {
+                width: 641,
+                height: 481,
+                ..cam
+            };
+            for f in [2u32, 3] {
+                let b = cam.binned(f);
+                assert_eq!((b.width, b.height), (641 / f, 481 / f));
+                for p in [DVec3::new(0.1, -0.2, 1.0), DVec3::new(-0.3, 0.25, 2.0)] {
+                    let (full, small) = (cam.project(p).unwrap(), b.project(p).unwrap());
+                    assert!((small * f as f64 - full).length() < 1e-9, "{:?}", cam.model);
+                }
+            }
+        }
     }
 
     #[test]

@@ -32,8 +32,38 @@ fn is_exr(path: &Path) -> bool {
 /// Read a depth image: a 16-bit PNG storing depth * `scale` (millimetres: scale = 1000, 0 =
 /// unknown), or an EXR storing metres (the R, Y or Z channel, else the first one; `scale` unused).
 pub fn read_depth(path: &Path, scale: f64) -> Result<DepthMap> {
+    decode_depth(path, open(path)?, scale)
+}
+
+/// A file opened for decoding, with an error naming it.
+fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>> {
+    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    Ok(std::io::BufReader::new(f))
+}
+
+/// An image decoded from `r`, its format from `path`'s extension (as `image::open` does), or
+/// from its first bytes when the extension names none. `path` names the file in errors.
+fn decode_image<R: std::io::BufRead + std::io::Seek>(path: &Path, r: R) -> Result<DynamicImage> {
+    let mut reader = image::ImageReader::new(r);
+    match image::ImageFormat::from_path(path) {
+        Ok(f) => reader.set_format(f),
+        Err(_) => {
+            reader = reader
+                .with_guessed_format()
+                .map_err(|e| Error::io(path, e))?
+        }
+    }
+    reader.decode().map_err(|e| Error::image(path, e))
+}
+
+/// [`read_depth`] on a stream of the file's bytes (`path` gives the format and names the file).
+pub fn decode_depth<R: std::io::BufRead + std::io::Seek>(
+    path: &Path,
+    r: R,
+    scale: f64,
+) -> Result<DepthMap> {
     if is_exr(path) {
-        return read_depth_exr(path);
+        return decode_depth_exr(path, r);
     }
     if !(scale.is_finite() && scale > 0.0) {
         return Err(Error::invalid(format!(
@@ -41,7 +71,7 @@ pub fn read_depth(path: &Path, scale: f64) -> Result<DepthMap> {
             path.display()
         )));
     }
-    let img = read_image(path)?;
+    let img = decode_image(path, r)?;
     let (width, height) = (img.width(), img.height());
     let raw: Vec<u16> = match img {
         DynamicImage::ImageLuma16(b) => b.into_raw(),
@@ -65,32 +95,91 @@ pub fn read_depth(path: &Path, scale: f64) -> Result<DepthMap> {
     })
 }
 
-fn read_depth_exr(path: &Path) -> Result<DepthMap> {
+fn decode_depth_exr<R: std::io::BufRead + std::io::Seek>(
+    path: &Path,
+    mut r: R,
+) -> Result<DepthMap> {
     use exr::prelude::{FlatSamples, ReadChannels, ReadLayers};
     let bad = |e: exr::error::Error| Error::format(path, format!("cannot read EXR depth: {e}"));
+    // The header's sizes size exr's sample buffers before any pixel is read (a corrupt 60-byte
+    // file asked for 35 TB): check them first, against the image crate's default limit.
+    // 256 MiB: an 8192 x 8192 float depth map; its f32 copy is counted too.
+    const MAX_DECODED_BYTES: usize = 256 << 20;
+    let meta = exr::meta::MetaData::read_from_buffered(&mut r, false).map_err(bad)?;
+    for h in meta.headers.iter() {
+        // Depth maps are one level; exr's reading of a corrupt multi-level file trips its own
+        // consistency checks.
+        let sample_bytes: usize = h
+            .channels
+            .list
+            .iter()
+            .map(|c| c.sample_type.bytes_per_sample())
+            .sum();
+        if let exr::meta::BlockDescription::Tiles(t) = &h.blocks {
+            // exr sizes a block's buffers by the declared tile (a fuzzed 8x8 image with
+            // 16711744x64 tiles took 1 GB): real tiles are 32 to 256 pixels a side.
+            let (tw, th) = (t.tile_size.width(), t.tile_size.height());
+            let tile_bytes = tw
+                .checked_mul(th)
+                .and_then(|n| n.checked_mul(sample_bytes.max(4)));
+            if tile_bytes.is_none_or(|b| b > MAX_DECODED_BYTES / 16) {
+                return Err(Error::format(
+                    path,
+                    format!("EXR tiles of {tw}x{th} pixels are not plausible (a corrupt header?)"),
+                ));
+            }
+            if t.level_mode != exr::meta::attribute::LevelMode::Singular {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "EXR depth with {:?} levels is not supported (one level expected)",
+                        t.level_mode
+                    ),
+                ));
+            }
+        }
+        let (w, ht) = (h.layer_size.width(), h.layer_size.height());
+        let bytes = w
+            .checked_mul(ht)
+            .and_then(|n| n.checked_mul(sample_bytes.max(4)));
+        if bytes.is_none_or(|b| b > MAX_DECODED_BYTES) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "EXR layer of {w}x{ht} pixels and {} channels would decode to more than {} MiB (a corrupt header?)",
+                    h.channels.list.len(),
+                    MAX_DECODED_BYTES >> 20
+                ),
+            ));
+        }
+    }
+    r.seek(std::io::SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
     let img = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(r)
         .map_err(bad)?;
     let layer = img.layer_data;
-    let channels = &layer.channel_data.list;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let mut channels = layer.channel_data.list.into_vec();
     // Channels are stored sorted by name, so "first" would be B for an RGB file: prefer the names
     // depth tools use.
-    let chan = ["R", "Y", "Z", "depth", "D"]
+    let pick = ["R", "Y", "Z", "depth", "D"]
         .iter()
-        .find_map(|n| channels.iter().find(|c| c.name.eq(n)))
-        .or_else(|| channels.first())
+        .find_map(|n| channels.iter().position(|c| c.name.eq(n)))
+        .or((!channels.is_empty()).then_some(0))
         .ok_or_else(|| Error::format(path, "EXR depth has no channels"))?;
-    let metres: Vec<f32> = match &chan.sample_data {
+    // Taken, not copied: a large depth map is not held twice.
+    let metres: Vec<f32> = match channels.swap_remove(pick).sample_data {
         FlatSamples::F16(v) => v.iter().map(|x| x.to_f32()).collect(),
-        FlatSamples::F32(v) => v.clone(),
+        FlatSamples::F32(v) => v,
         FlatSamples::U32(v) => v.iter().map(|&x| x as f32).collect(),
     };
-    let (w, h) = (layer.size.width(), layer.size.height());
+    drop(channels);
     if metres.len() != w * h {
         return Err(Error::format(
             path,
@@ -199,14 +288,19 @@ pub fn is_image(path: &Path) -> bool {
 
 /// Open an image file of any supported format.
 pub fn read_image(path: &Path) -> Result<DynamicImage> {
-    image::open(path).map_err(|e| Error::image(path, e))
+    decode_image(path, open(path)?)
 }
 
 /// Read a colour image as 8-bit RGB. Images with alpha (NeRF-synthetic's RGBA) are composited
 /// onto white, the standard protocol for those datasets, so transparent pixels do not become
 /// black.
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    Ok(rgb_on_white(&read_image(path)?))
+    decode_rgb(path, open(path)?)
+}
+
+/// [`read_rgb`] on a stream of the file's bytes (`path` gives the format and names the file).
+pub fn decode_rgb<R: std::io::BufRead + std::io::Seek>(path: &Path, r: R) -> Result<RgbImage> {
+    Ok(rgb_on_white(&decode_image(path, r)?))
 }
 
 /// An image as 8-bit RGB, alpha composited onto white.
@@ -235,14 +329,27 @@ pub enum MaskChannel {
 /// Read a mask as one 8-bit channel (object where [`crate::util::mask::is_object`]). The one
 /// rule for which channel: the alpha of an image whose alpha varies (an RGBA cut-out, a
 /// NeRF-synthetic view), else the luma. Masks saved as RGBA with an opaque alpha thus read by
-/// their grey values, not as all-object.
+/// their grey values, not as all-object; masks saved as 0/1 (numpy's `bool.astype(uint8)`;
+/// nerfstudio takes any non-zero value as the object) read as 0/255.
 pub fn read_mask(path: &Path) -> Result<GrayImage> {
     read_mask_channel(path).map(|(m, _)| m)
 }
 
 /// [`read_mask`], also saying which channel the mask came from.
 pub fn read_mask_channel(path: &Path) -> Result<(GrayImage, MaskChannel)> {
-    let img = read_image(path)?;
+    decode_mask_channel(path, open(path)?)
+}
+
+/// [`read_mask`] on a stream of the file's bytes (`path` gives the format and names the file).
+pub fn decode_mask<R: std::io::BufRead + std::io::Seek>(path: &Path, r: R) -> Result<GrayImage> {
+    decode_mask_channel(path, r).map(|(m, _)| m)
+}
+
+fn decode_mask_channel<R: std::io::BufRead + std::io::Seek>(
+    path: &Path,
+    r: R,
+) -> Result<(GrayImage, MaskChannel)> {
+    let img = decode_image(path, r)?;
     if img.color().has_alpha() {
         let rgba = img.to_rgba8();
         let first = rgba.pixels().next().map_or(255, |p| p.0[3]);
@@ -254,7 +361,11 @@ pub fn read_mask_channel(path: &Path) -> Result<(GrayImage, MaskChannel)> {
             return Ok((m, MaskChannel::Alpha));
         }
     }
-    Ok((img.to_luma8(), MaskChannel::Luma))
+    let mut m = img.to_luma8();
+    if m.iter().all(|&v| v <= 1) {
+        m.iter_mut().for_each(|v| *v *= 255);
+    }
+    Ok((m, MaskChannel::Luma))
 }
 
 /// Where the mask of the image named `image_name` lies under a masks folder: the image's name
@@ -276,7 +387,16 @@ pub fn mask_file(dir: &Path, image_name: &str) -> PathBuf {
 /// tools) a file named like the image, or its stem with a png/jpg extension, at the top level.
 pub fn find_mask(dir: &Path, image_name: &str) -> Result<PathBuf> {
     let p = Path::new(image_name);
-    let mut cands = vec![mask_file(dir, image_name), dir.join(image_name)];
+    // Also as objnerf 0.1's `segment` flattened them (`images/r_0.png` -> `images_r_0.png`).
+    let flat = Path::new(image_name)
+        .with_extension("")
+        .to_string_lossy()
+        .replace(['/', '\\'], "_");
+    let mut cands = vec![
+        mask_file(dir, image_name),
+        dir.join(image_name),
+        dir.join(format!("{flat}.png")),
+    ];
     if let Some(fname) = p.file_name() {
         cands.push(dir.join(fname));
     }

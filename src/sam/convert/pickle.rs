@@ -76,8 +76,29 @@ pub fn parse(data: &[u8]) -> Result<Value, String> {
         stack: Vec::new(),
         marks: Vec::new(),
         memo: HashMap::new(),
+        copied: 0,
     };
     m.run()
+}
+
+/// How many values the memo may copy in all, per byte of pickle (plus a floor): memo references
+/// are copies here, and each copy of a container of copies doubles it, so a few hundred corrupt
+/// bytes could otherwise ask for 2^100 values. A state dict's memo copies strings and small tuples.
+const MEMO_COPIES_PER_BYTE: usize = 64;
+
+/// Values in `v`, counted without recursion (the nesting may be deep).
+fn size(v: &Value) -> usize {
+    let mut n = 0;
+    let mut todo = vec![v];
+    while let Some(v) = todo.pop() {
+        n += 1;
+        match v {
+            Value::Tuple(items) | Value::List(items) => todo.extend(items),
+            Value::Dict(items) => todo.extend(items.iter().flat_map(|(k, v)| [k, v])),
+            _ => {}
+        }
+    }
+    n
 }
 
 struct Machine<'a> {
@@ -86,6 +107,8 @@ struct Machine<'a> {
     stack: Vec<Value>,
     marks: Vec<usize>,
     memo: HashMap<u32, Value>,
+    /// Values copied into and out of the memo so far (see [`MEMO_COPIES_PER_BYTE`]).
+    copied: usize,
 }
 
 impl Machine<'_> {
@@ -144,14 +167,32 @@ impl Machine<'_> {
             .last_mut()
             .ok_or_else(|| format!("stack underflow at byte {pos}"))
     }
-    fn memo_get(&self, k: u32) -> Result<Value, String> {
-        self.memo
-            .get(&k)
-            .cloned()
-            .ok_or_else(|| format!("memo key {k} unset at byte {}", self.pos))
+    /// Count a copy of `n` values against the budget, refusing one that would exceed it.
+    fn copying(&mut self, n: usize) -> Result<(), String> {
+        self.copied = self.copied.saturating_add(n);
+        let budget = MEMO_COPIES_PER_BYTE * self.data.len() + 100_000;
+        if self.copied > budget {
+            return Err(format!(
+                "memo references at byte {} copy more than {budget} values: corrupt (or not a state dict)",
+                self.pos
+            ));
+        }
+        Ok(())
+    }
+    fn memo_get(&mut self, k: u32) -> Result<Value, String> {
+        let pos = self.pos;
+        let n = size(
+            self.memo
+                .get(&k)
+                .ok_or_else(|| format!("memo key {k} unset at byte {pos}"))?,
+        );
+        self.copying(n)?;
+        Ok(self.memo[&k].clone())
     }
     fn memo_put(&mut self, k: u32) -> Result<(), String> {
         // A copy: state dicts never mutate a container after another reference to it is taken.
+        let n = size(self.top()?);
+        self.copying(n)?;
         let v = self.top()?.clone();
         self.memo.insert(k, v);
         Ok(())
@@ -395,6 +436,22 @@ fn reduce(callable: &Value, args: Value) -> Result<Value, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Memo references are copies: a pickle doubling one list 60 times is refused, not expanded
+    /// to 2^60 values.
+    #[test]
+    fn memo_doubling_is_refused() {
+        let mut p = b"\x80\x02]q\x00".to_vec();
+        for _ in 0..60 {
+            p.extend(b"h\x00h\x00\x86q\x00");
+        }
+        p.push(b'.');
+        let e = parse(&p).unwrap_err();
+        assert!(e.contains("copy more than"), "{e}");
+        // A few copies are fine.
+        let ok = b"\x80\x02]q\x00h\x00h\x00\x86.";
+        assert!(matches!(parse(ok), Ok(Value::Tuple(t)) if t.len() == 2));
+    }
 
     #[test]
     fn a_small_ordered_dict_with_a_tensor() {

@@ -62,9 +62,14 @@ impl StateDict {
     /// truncated), no `data.pkl`, a pickle that is not a state dict, a storage record that is
     /// missing or shorter than its tensors need.
     pub fn load(path: &Path) -> Result<Self> {
-        let bad = |msg: String| Error::format(path, msg);
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
+        Self::parse(path, std::io::BufReader::new(file))
+    }
+
+    /// [`StateDict::load`] on a stream of the file's bytes (`path` names it in errors).
+    pub fn parse<R: std::io::Read + std::io::Seek>(path: &Path, r: R) -> Result<Self> {
+        let bad = |msg: String| Error::format(path, msg);
+        let mut zip = zip::ZipArchive::new(r).map_err(|e| {
             bad(format!(
                 "not a PyTorch checkpoint (its zip archive cannot be read: {e}); a truncated download looks like this"
             ))
@@ -132,7 +137,8 @@ fn read_entry<R: std::io::Read + std::io::Seek>(
     let mut f = zip
         .by_name(name)
         .map_err(|e| format!("record {name}: {e}"))?;
-    let mut out = Vec::with_capacity(f.size() as usize);
+    // The size is the archive's word for it: reserve no more than a sane record, the read grows.
+    let mut out = Vec::with_capacity(f.size().min(1 << 26) as usize);
     // Reading to the end also checks the record's CRC-32.
     f.read_to_end(&mut out)
         .map_err(|e| format!("record {name} cannot be read: {e}"))?;
@@ -149,14 +155,33 @@ fn gather(t: &TensorRef, bytes: &[u8]) -> std::result::Result<Tensor, String> {
         ));
     }
     let shape: Vec<usize> = t.shape.iter().map(|&d| d as usize).collect();
-    let n: usize = shape.iter().product();
+    // Checked: a corrupt shape or stride must not wrap past the storage check.
+    let n = t.shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d));
     // The furthest element the view touches must lie inside the storage.
-    let last = t.offset
-        + t.shape
-            .iter()
-            .zip(&t.stride)
-            .map(|(&d, &s)| d.saturating_sub(1) * s)
-            .sum::<u64>();
+    let last = t
+        .shape
+        .iter()
+        .zip(&t.stride)
+        .try_fold(t.offset, |a, (&d, &s)| {
+            d.saturating_sub(1)
+                .checked_mul(s)
+                .and_then(|x| a.checked_add(x))
+        });
+    let (Some(n), Some(last)) = (n, last) else {
+        return Err(format!(
+            "view (offset {}, shape {:?}, stride {:?}) overflows",
+            t.offset, t.shape, t.stride
+        ));
+    };
+    // A state dict's tensors do not repeat stored values (no zero strides): more elements than
+    // the storage holds is a corrupt shape, and would size the allocation below.
+    if n > t.storage.numel {
+        return Err(format!(
+            "view of shape {:?} has {n} elements, more than its {} stored floats",
+            t.shape, t.storage.numel
+        ));
+    }
+    let n = n as usize;
     if n > 0 && last >= t.storage.numel {
         return Err(format!(
             "view (offset {}, shape {:?}, stride {:?}) reaches past its {} stored floats",
@@ -217,5 +242,15 @@ mod tests {
         assert!(gather(&view(0, vec![2], vec![1]), &bytes[..20])
             .unwrap_err()
             .contains("storage record"));
+        // Shapes and strides that overflow, or repeat values, are errors, not wrapped offsets
+        // or huge allocations.
+        for (shape, stride, why) in [
+            (vec![1 << 40, 1 << 40], vec![0, 0], "overflows"),
+            (vec![3, 2], vec![1 << 63, 1], "overflows"),
+            (vec![100_000, 100_000], vec![0, 0], "more than"),
+        ] {
+            let e = gather(&view(0, shape, stride), &bytes).unwrap_err();
+            assert!(e.contains(why), "{e}");
+        }
     }
 }

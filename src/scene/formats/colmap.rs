@@ -39,23 +39,67 @@ pub fn detect(dir: &Path) -> Option<ModelFormat> {
 pub fn read_model(dir: &Path, images_root: &Path) -> Result<Scene> {
     let format = detect(dir)
         .ok_or_else(|| Error::format(dir, "not a COLMAP model: no cameras.bin or cameras.txt"))?;
-    let raw = match format {
-        ModelFormat::Binary => RawModel {
-            cameras: read_cameras_bin(&dir.join("cameras.bin"))?,
-            images: read_images_bin(&dir.join("images.bin"))?,
-            points: read_points_bin(&dir.join("points3D.bin"))?,
-        },
-        ModelFormat::Text => RawModel {
-            cameras: read_cameras_txt(&dir.join("cameras.txt"))?,
-            images: read_images_txt(&dir.join("images.txt"))?,
-            points: read_points_txt(&dir.join("points3D.txt"))?,
-        },
+    let file = |n: &str| dir.join(format!("{n}.{}", format.ext()));
+    // One file at a time, so a broken cameras file is reported before images are read.
+    let cameras = read_file(&file("cameras"))?;
+    let cameras = parse_cameras(&file("cameras"), format, &cameras)?;
+    let images = read_file(&file("images"))?;
+    let images = parse_images(&file("images"), format, &images)?;
+    let points = read_file(&file("points3D"))?;
+    let points = parse_points(&file("points3D"), format, &points)?;
+    let raw = RawModel {
+        cameras,
+        images,
+        points,
     };
-    let src = match format {
+    raw.into_scene(dir, format, images_root, src_format(format))
+}
+
+/// A COLMAP model from the bytes of its three files, as [`read_model`] reads them from `dir`
+/// (which only names the files in errors; nothing is read from it).
+pub fn parse_model(
+    dir: &Path,
+    images_root: &Path,
+    format: ModelFormat,
+    cameras: &[u8],
+    images: &[u8],
+    points3d: &[u8],
+) -> Result<Scene> {
+    let file = |n: &str| dir.join(format!("{n}.{}", format.ext()));
+    let raw = RawModel {
+        cameras: parse_cameras(&file("cameras"), format, cameras)?,
+        images: parse_images(&file("images"), format, images)?,
+        points: parse_points(&file("points3D"), format, points3d)?,
+    };
+    raw.into_scene(dir, format, images_root, src_format(format))
+}
+
+fn parse_cameras(path: &Path, format: ModelFormat, bytes: &[u8]) -> Result<Vec<RawCamera>> {
+    match format {
+        ModelFormat::Binary => read_cameras_bin(path, bytes),
+        ModelFormat::Text => read_cameras_txt(path, bytes),
+    }
+}
+
+fn parse_images(path: &Path, format: ModelFormat, bytes: &[u8]) -> Result<Vec<RawImage>> {
+    match format {
+        ModelFormat::Binary => read_images_bin(path, bytes),
+        ModelFormat::Text => read_images_txt(path, bytes),
+    }
+}
+
+fn parse_points(path: &Path, format: ModelFormat, bytes: &[u8]) -> Result<Vec<RawPoint>> {
+    match format {
+        ModelFormat::Binary => read_points_bin(path, bytes),
+        ModelFormat::Text => read_points_txt(path, bytes),
+    }
+}
+
+fn src_format(format: ModelFormat) -> SourceFormat {
+    match format {
         ModelFormat::Binary => SourceFormat::ColmapBinary,
         ModelFormat::Text => SourceFormat::ColmapText,
-    };
-    raw.into_scene(dir, format, images_root, src)
+    }
 }
 
 /// Write `scene` as a COLMAP model into `dir` (created if needed); each file is written atomically.
@@ -179,6 +223,12 @@ impl RawModel {
                 .map_err(|m| Error::format(file("images"), format!("image '{}': {m}", im.name)))?;
             let mut features = Vec::with_capacity(im.points2d.len());
             for &(x, y, pid) in &im.points2d {
+                if !(x.is_finite() && y.is_finite()) {
+                    return Err(Error::format(
+                        file("images"),
+                        format!("image '{}' has a non-finite 2D point ({x}, {y})", im.name),
+                    ));
+                }
                 let point = if pid < 0 || pid as u64 == u64::MAX {
                     None
                 } else {
@@ -216,6 +266,12 @@ impl RawModel {
         }
         let mut points = Vec::with_capacity(self.points.len());
         for p in self.points {
+            if !p.xyz.iter().all(|v| v.is_finite()) {
+                return Err(Error::format(
+                    file("points3D"),
+                    format!("point3D {} is not finite: {:?}", p.id, p.xyz),
+                ));
+            }
             let mut track = Vec::with_capacity(p.track.len());
             for &(iid, idx) in &p.track {
                 let image = *image_index.get(&iid).ok_or_else(|| {
@@ -542,13 +598,8 @@ fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| Error::io(path, e))
 }
 
-fn read_cameras_bin(path: &Path) -> Result<Vec<RawCamera>> {
-    let buf = read_file(path)?;
-    let mut r = BinReader {
-        path,
-        buf: &buf,
-        pos: 0,
-    };
+fn read_cameras_bin(path: &Path, buf: &[u8]) -> Result<Vec<RawCamera>> {
+    let mut r = BinReader { path, buf, pos: 0 };
     let n = r.count(24, "number of cameras")?;
     let mut out = Vec::with_capacity(n);
     for _ in 0..n {
@@ -577,13 +628,8 @@ fn read_cameras_bin(path: &Path) -> Result<Vec<RawCamera>> {
     Ok(out)
 }
 
-fn read_images_bin(path: &Path) -> Result<Vec<RawImage>> {
-    let buf = read_file(path)?;
-    let mut r = BinReader {
-        path,
-        buf: &buf,
-        pos: 0,
-    };
+fn read_images_bin(path: &Path, buf: &[u8]) -> Result<Vec<RawImage>> {
+    let mut r = BinReader { path, buf, pos: 0 };
     let n = r.count(73, "number of images")?;
     let mut out = Vec::with_capacity(n);
     for _ in 0..n {
@@ -629,13 +675,8 @@ fn read_images_bin(path: &Path) -> Result<Vec<RawImage>> {
     Ok(out)
 }
 
-fn read_points_bin(path: &Path) -> Result<Vec<RawPoint>> {
-    let buf = read_file(path)?;
-    let mut r = BinReader {
-        path,
-        buf: &buf,
-        pos: 0,
-    };
+fn read_points_bin(path: &Path, buf: &[u8]) -> Result<Vec<RawPoint>> {
+    let mut r = BinReader { path, buf, pos: 0 };
     let n = r.count(51, "number of points")?;
     let mut out = Vec::with_capacity(n);
     for _ in 0..n {
@@ -669,8 +710,8 @@ fn read_points_bin(path: &Path) -> Result<Vec<RawPoint>> {
 // ---------------------------------------------------------------------------------------------
 // Text readers.
 
-fn data_lines(path: &Path) -> Result<Vec<(usize, String)>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+fn data_lines(path: &Path, bytes: &[u8]) -> Result<Vec<(usize, String)>> {
+    let text = super::text(path, bytes)?;
     Ok(text
         .lines()
         .enumerate()
@@ -694,9 +735,9 @@ fn parse<T: std::str::FromStr>(
     })
 }
 
-fn read_cameras_txt(path: &Path) -> Result<Vec<RawCamera>> {
+fn read_cameras_txt(path: &Path, bytes: &[u8]) -> Result<Vec<RawCamera>> {
     let mut out = Vec::new();
-    for (ln, line) in data_lines(path)? {
+    for (ln, line) in data_lines(path, bytes)? {
         if line.is_empty() {
             continue;
         }
@@ -724,8 +765,8 @@ fn read_cameras_txt(path: &Path) -> Result<Vec<RawCamera>> {
     Ok(out)
 }
 
-fn read_images_txt(path: &Path) -> Result<Vec<RawImage>> {
-    let lines = data_lines(path)?;
+fn read_images_txt(path: &Path, bytes: &[u8]) -> Result<Vec<RawImage>> {
+    let lines = data_lines(path, bytes)?;
     let mut out = Vec::new();
     let mut i = 0;
     while i < lines.len() {
@@ -793,9 +834,9 @@ fn read_images_txt(path: &Path) -> Result<Vec<RawImage>> {
     Ok(out)
 }
 
-fn read_points_txt(path: &Path) -> Result<Vec<RawPoint>> {
+fn read_points_txt(path: &Path, bytes: &[u8]) -> Result<Vec<RawPoint>> {
     let mut out = Vec::new();
-    for (ln, line) in data_lines(path)? {
+    for (ln, line) in data_lines(path, bytes)? {
         if line.is_empty() {
             continue;
         }

@@ -13,7 +13,14 @@ use std::path::{Path, PathBuf};
 /// Read an LLFF scene folder.
 pub fn read(dir: &Path) -> Result<Scene> {
     let npy = dir.join("poses_bounds.npy");
-    let (shape, data) = read_npy_f64(&npy)?;
+    let bytes = std::fs::read(&npy).map_err(|e| Error::io(&npy, e))?;
+    parse(dir, &bytes)
+}
+
+/// An LLFF scene from the bytes of its `poses_bounds.npy`; the images are looked up in `dir`.
+pub fn parse(dir: &Path, npy_bytes: &[u8]) -> Result<Scene> {
+    let npy = dir.join("poses_bounds.npy");
+    let (shape, data) = parse_npy_f64(&npy, npy_bytes)?;
     if shape.len() != 2 || shape[1] != 17 {
         return Err(Error::format(
             &npy,
@@ -130,6 +137,11 @@ fn find_images(dir: &Path, n: usize) -> Result<Vec<PathBuf>> {
 /// A float array from a .npy file (little-endian '<f8' or '<f4', C order): shape and values.
 pub fn read_npy_f64(path: &Path) -> Result<(Vec<usize>, Vec<f64>)> {
     let buf = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse_npy_f64(path, &buf)
+}
+
+/// [`read_npy_f64`] on the file's bytes (`path` names it in errors).
+pub fn parse_npy_f64(path: &Path, buf: &[u8]) -> Result<(Vec<usize>, Vec<f64>)> {
     let bad = |m: &str| Error::format(path, format!("not a valid .npy file: {m}"));
     if buf.len() < 10 || &buf[..6] != b"\x93NUMPY" {
         return Err(bad("no \\x93NUMPY magic"));

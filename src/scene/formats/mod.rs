@@ -110,3 +110,13 @@ pub(crate) fn image_size(path: &Path) -> Result<(u32, u32)> {
     }
     image::image_dimensions(path).map_err(|e| Error::image(path, e))
 }
+
+/// A text file's bytes as UTF-8, with an error naming the file and where the bad byte is.
+pub(crate) fn text<'a>(path: &Path, bytes: &'a [u8]) -> Result<&'a str> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        Error::format(
+            path,
+            format!("not UTF-8 text: invalid byte at offset {}", e.valid_up_to()),
+        )
+    })
+}

@@ -100,7 +100,14 @@ impl Intrinsics {
 
 /// Read a nerfstudio or NeRF-synthetic transforms JSON file.
 pub fn read(path: &Path) -> Result<Scene> {
-    let tf: Transforms = read_json_file(path)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse(path, &bytes)
+}
+
+/// A transforms JSON from its bytes, as [`read`] reads it from `path`: `path` names the file in
+/// errors and its folder is where the images (and masks, depth, PLY) are looked up.
+pub fn parse(path: &Path, bytes: &[u8]) -> Result<Scene> {
+    let tf: Transforms = parse_json(path, bytes)?;
     let dir = path.parent().unwrap_or(Path::new(""));
     let resolve = |p: &str| dir.join(normalize(Path::new(p)));
     if tf.frames.is_empty() {
@@ -195,8 +202,15 @@ pub fn read(path: &Path) -> Result<Scene> {
 
 /// Parse a JSON file written by nerfstudio (or for it) into `T`.
 pub(crate) fn read_json_file<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse_json(path, &bytes)
+}
+
+/// JSON from a file's bytes (`path` names it in errors): UTF-8 checked, and a syntax error
+/// that NaN or Infinity explains says so.
+pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<T> {
+    let text = super::text(path, bytes)?;
+    serde_json::from_str(text).map_err(|e| {
         // Python's json module writes non-finite floats as bare NaN/Infinity: say so.
         if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
             Error::format(

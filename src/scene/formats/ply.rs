@@ -266,8 +266,19 @@ pub fn read_mesh(path: &Path) -> Result<PlyData> {
 }
 
 fn read(path: &Path, with_faces: bool) -> Result<PlyData> {
+    // Not a FIFO or a device (a json's ply_file_path could name one): those could be endless.
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::format(path, "not a regular file"));
+    }
     let buf = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let (encoding, elements, body_start) = parse_header(path, &buf)?;
+    parse(path, &buf, with_faces)
+}
+
+/// A PLY file's vertices (and, with `with_faces`, its faces) from its bytes, as [`read_points`]
+/// and [`read_mesh`] read them (`path` names the file in errors).
+pub fn parse(path: &Path, buf: &[u8], with_faces: bool) -> Result<PlyData> {
+    let (encoding, elements, body_start) = parse_header(path, buf)?;
     let body = &buf[body_start..];
     let text = match encoding {
         Encoding::Ascii => std::str::from_utf8(body)
@@ -339,6 +350,17 @@ fn read(path: &Path, with_faces: bool) -> Result<PlyData> {
     for (e, el) in elements[..=last].iter().enumerate() {
         let is_vertex = e == vertex;
         let is_face = with_faces && Some(e) == face;
+        if el.props.is_empty() && el.count > 0 {
+            // Records without properties take no bytes: a count of them says nothing, and
+            // looping over a corrupt 2^64 of them would never end.
+            return Err(Error::format(
+                path,
+                format!(
+                    "element '{}' declares {} records but no properties",
+                    el.name, el.count
+                ),
+            ));
+        }
         for i in 0..el.count {
             values.clear();
             for p in &el.props {

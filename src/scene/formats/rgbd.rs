@@ -97,7 +97,13 @@ fn read_intrinsics(dir: &Path) -> Result<Camera> {
 /// Redwood `.log`: per frame a line "i j n", then four rows of a camera-to-world 4x4 whose camera
 /// axes follow OpenCV.
 fn read_trajectory(path: &Path) -> Result<Vec<Pose>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse_trajectory(path, &bytes)
+}
+
+/// The poses of a Redwood `trajectory.log` from its bytes (`path` names it in errors).
+pub fn parse_trajectory(path: &Path, bytes: &[u8]) -> Result<Vec<Pose>> {
+    let text = super::text(path, bytes)?;
     let lines: Vec<(usize, &str)> = text
         .lines()
         .enumerate()

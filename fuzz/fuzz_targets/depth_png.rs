@@ -1,0 +1,13 @@
+//! Depth maps: 16-bit PNG in millimetres.
+#![no_main]
+use libfuzzer_sys::fuzz_target;
+use std::io::Cursor;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    if let Ok(d) =
+        objnerf::scene::io::decode_depth(Path::new("depth.png"), Cursor::new(data), 1000.0)
+    {
+        assert_eq!(d.metres.len(), d.width as usize * d.height as usize);
+    }
+});
