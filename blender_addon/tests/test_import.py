@@ -4,6 +4,7 @@ and the bad cases (missing folder, missing files, a scene format that needs the 
 import json
 import os
 import shutil
+import struct
 
 import bpy
 import numpy as np
@@ -57,6 +58,45 @@ def test_demo_run_cameras_project_like_objnerf(prefs, demo_run):
     print(f"reprojection: {n} point-views over 36 cameras, max |Blender - objnerf| = {worst:.2e} px")
     assert n > 36 * 1000
     assert worst < 0.5
+    # objnerf's own projections: the demo scene's COLMAP features are the points projected by
+    # objnerf (src/demo/tracks.rs: no noise, no outliers by default), in COLMAP's pixel frame.
+    feats, xyz_by_id = read_colmap_tracks(os.path.join(demo_run, "scene", "sparse", "0"))
+    worst_f, n_f = 0.0, 0
+    root_m = np.array(root.matrix_world, dtype=np.float64)
+    for name, obs in feats.items():
+        pts = np.array([xyz_by_id[pid] for _, _, pid in obs])
+        pts_world = np.c_[pts, np.ones(len(pts))] @ root_m.T[:, :3]
+        theirs = blender_project(by_name[os.path.splitext(os.path.basename(name))[0]], pts_world, 320, 240)
+        err = np.linalg.norm(theirs - np.array([(x, y) for x, y, _ in obs]), axis=1)
+        worst_f, n_f = max(worst_f, float(err.max())), n_f + len(obs)
+    print(f"against objnerf's features (sparse/0/images.bin): {n_f} observations over {len(feats)} cameras, "
+          f"max |Blender - objnerf| = {worst_f:.2e} px")
+    assert len(feats) == 36 and n_f > 36 * 1000
+    assert worst_f < 0.5
+
+
+def read_colmap_tracks(model):
+    """COLMAP binary images.bin / points3D.bin (layout in ../shared/DESIGN.md): per image name,
+    its observations (x, y, point3D_id) of triangulated points; and point id -> xyz."""
+    with open(os.path.join(model, "points3D.bin"), "rb") as f:
+        data = f.read()
+    (n,), off, xyz = struct.unpack_from("<Q", data), 8, {}
+    for _ in range(n):
+        pid, x, y, z = struct.unpack_from("<Q3d", data, off)
+        track_len = struct.unpack_from("<Q", data, off + 43)[0]
+        xyz[pid], off = (x, y, z), off + 51 + 8 * track_len
+    with open(os.path.join(model, "images.bin"), "rb") as f:
+        data = f.read()
+    (n,), off, feats = struct.unpack_from("<Q", data), 8, {}
+    for _ in range(n):
+        off += 4 + 7 * 8 + 4
+        end = data.index(b"\0", off)
+        name, off = data[off:end].decode(), end + 1
+        (n2d,) = struct.unpack_from("<Q", data, off)
+        off += 8
+        obs = [struct.unpack_from("<2dq", data, off + 24 * k) for k in range(n2d)]
+        feats[name], off = [o for o in obs if o[2] >= 0], off + 24 * n2d
+    return feats, xyz
     r = bpy.context.scene.render
     assert (r.resolution_x, r.resolution_y, r.resolution_percentage) == (320, 240, 100)
 
