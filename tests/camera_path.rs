@@ -420,11 +420,10 @@ fn cli_reads_a_viewer_path_into_the_data_frame() {
         "{text}"
     );
     let bad = t.join("bad.json");
-    let broken = std::fs::read_to_string(&out)
-        .unwrap()
-        .replacen("\"fov\": 42", "\"fov\": -42", 1);
-    assert!(broken.contains("-42"));
-    std::fs::write(&bad, broken).unwrap();
+    let mut broken: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    broken["camera_path"][3]["fov"] = (-42.0).into();
+    std::fs::write(&bad, broken.to_string()).unwrap();
     let not_written = t.join("never.json");
     let o = std::process::Command::new(common::objnerf_bin())
         .args(["camera-path", &s(&bad), "--out", &s(&not_written)])
@@ -433,7 +432,7 @@ fn cli_reads_a_viewer_path_into_the_data_frame() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        err.contains("bad.json") && err.contains("fov = -42"),
+        err.contains("bad.json") && err.contains("camera_path[3]: fov = -42"),
         "{err}"
     );
     assert!(!not_written.exists());
