@@ -9,7 +9,7 @@ import struct
 import bpy
 import numpy as np
 import pytest
-from conftest import scene_objects
+from conftest import blender_report, scene_objects
 from mathutils.bvhtree import BVHTree
 from objnerf_blender import cli, formats, frames
 
@@ -123,7 +123,7 @@ def test_mug_proxy_sits_on_its_segmented_points(prefs, demo_run):
 
 
 def test_missing_run_folder_is_a_report(addon, tmp_path):
-    with pytest.raises(RuntimeError, match="does not exist"):
+    with blender_report("does not exist"):
         bpy.ops.objnerf.import_run(directory=str(tmp_path / "nope"))
     assert not scene_objects("ROOT")
 
@@ -132,10 +132,10 @@ def test_run_missing_files_is_a_report(addon, demo_run, tmp_path):
     run = tmp_path / "run"
     run.mkdir()
     shutil.copy(os.path.join(demo_run, "run", "report.json"), run / "report.json")
-    with pytest.raises(RuntimeError, match=r"missing mug/model\.objf, mug/mesh\.ply, segment/mug_points\.ply"):
+    with blender_report(r"missing mug/model\.objf, mug/mesh\.ply, segment/mug_points\.ply"):
         bpy.ops.objnerf.import_run(directory=str(run))
     (run / "report.json").write_text("{not json")
-    with pytest.raises(RuntimeError, match="not valid JSON"):
+    with blender_report("not valid JSON"):
         bpy.ops.objnerf.import_run(directory=str(run))
     assert not scene_objects("ROOT")
 
@@ -158,7 +158,7 @@ def test_import_scene_and_other_formats(prefs, objnerf_bin, demo_run):
 def test_binary_not_found_is_a_report(addon, tmp_path):
     p = bpy.context.preferences.addons["objnerf_blender"].preferences
     p.binary = str(tmp_path / "no-such-objnerf")
-    with pytest.raises(RuntimeError, match="objnerf binary not found"):
+    with blender_report("objnerf binary not found"):
         bpy.ops.objnerf.import_scene(filepath=str(tmp_path))  # a folder without transforms.json
 
 
