@@ -125,7 +125,7 @@ fn main() -> objnerf::Result<()> {
     }
     let cpu0 = cpu_seconds();
     let t1 = std::time::Instant::now();
-    let (mut trainer, rays, report) = field::prepare(&views, &setup, cfg)?;
+    let (mut trainer, rays, report) = field::prepare(&views, &[], &setup, cfg)?;
     let prep_s = t1.elapsed().as_secs_f64();
     eprintln!("{}", serde_json::to_string(&report).unwrap_or_default());
     let stop = StopRule {

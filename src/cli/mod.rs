@@ -8,6 +8,7 @@ mod field;
 mod mesh;
 mod models;
 mod progress;
+mod remove;
 mod run;
 mod scene;
 mod segment;
@@ -58,6 +59,9 @@ enum Command {
     /// The main job on the built-in demo scene: render it, extract one object from one click
     /// (segment, train, mesh, turntable) and score each stage against the scene's exact truth.
     Demo(run::DemoCmd),
+    /// Take objects out of a scene: a field of the scene without them (trained with the reverse
+    /// alpha, the part of the hole no view saw filled), renders of every view, a contact sheet.
+    Remove(remove::RemoveCmd),
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene(scene::DemoSceneCmd),
     /// Export a run or a scene for other tools.
@@ -99,6 +103,7 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::Extract(cmd) => cmd.run(sub.expect("extract has matches")),
         Command::Demo(cmd) => cmd.run(),
         Command::DemoScene(cmd) => cmd.run(),
+        Command::Remove(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
         Command::CameraPath(cmd) => cmd.run(),
     }

@@ -2,6 +2,7 @@
 //! [`Trainer`] and a report out. `objnerf train` and `objnerf extract` both use it; saving the
 //! model ([`super::io::save`]) is the caller's choice.
 
+use super::bounds::points_in_masks;
 use super::depth::{add_dense_depth, add_sparse_depth};
 use super::io::Model;
 use super::layout::{choose_space, SpaceChoice};
@@ -133,7 +134,8 @@ pub fn fit_scene(
     };
     let (mut trainer, rays, setup) = match resume {
         None => {
-            let (t, r, s) = prepare(&views, &opts.setup, cfg)?;
+            let points = points_in_masks(scene, &views, opts.downscale);
+            let (t, r, s) = prepare(&views, &points, &opts.setup, cfg)?;
             (t, r, Some(s))
         }
         Some(m) => {
@@ -188,14 +190,20 @@ impl Default for SceneFitOptions {
     fn default() -> Self {
         SceneFitOptions {
             space: SpaceChoice::Auto,
-            fit: FitOptions::default(),
+            // The sparse points' depths keep a scene's surfaces where they are: without them
+            // the demo scene's held-out views fell from 23.7 to 17.8 dB at 160x120 (see
+            // examples/results/scene_field.md).
+            fit: FitOptions {
+                depth: DepthMode::Sparse,
+                ..FitOptions::default()
+            },
             removed: None,
             dilate_px: 4,
             prune_after: 0.1,
             carve_weight: 1e-3,
             exclude_points: Default::default(),
             stages: Some(vec![(0.0, 0.25), (0.25, 0.5), (0.5, 1.0)]),
-            distortion_weight: 0.0,
+            distortion_weight: 0.001,
         }
     }
 }
@@ -328,7 +336,7 @@ impl SceneFit {
 
 /// Which pixels of a view (downscaled by `factor` to `w` x `h`) carry a loss: those whose whole
 /// block lies outside the removed mask grown by `dilate_px`.
-fn loss_mask(removed: &GrayImage, dilate_px: u32, factor: u32, w: u32, h: u32) -> Vec<bool> {
+pub fn loss_mask(removed: &GrayImage, dilate_px: u32, factor: u32, w: u32, h: u32) -> Vec<bool> {
     let grown = dilate(removed, dilate_px);
     let f = factor.max(1);
     let mut keep = vec![true; (w * h) as usize];

@@ -56,7 +56,7 @@ pub mod train;
 pub mod view;
 
 pub use fit::{
-    fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind, FitOptions, Fitted,
+    fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind, FitOptions, Fitted, SceneFit,
     SceneFitOptions, TrainReport,
 };
 pub use layout::SpaceChoice;
