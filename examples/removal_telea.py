@@ -4,11 +4,13 @@ DILATE pixels, a square neighbourhood as objnerf's `util::mask::dilate`), scored
 scene's truth of the removal.
 
 python removal_telea.py SCENE_DIR SEGMENT_DIR --objects mug[,torus] --views view_003.png,...
-    [--dilate 4] [--score-dilate 4] [--radius 3] [--out-images DIR]
+    [--dilate 4] [--score-dilate 4] [--radius 3] [--downscale F] [--out-images DIR]
 
 Prints one JSON object: per view and in all, the squared error and pixel count over the whole
 frame and inside each object's true mask grown by SCORE_DILATE pixels (so PSNRs pool pixels the
-way objnerf's removal report does), and the seconds cv2.inpaint took.
+way objnerf's removal report does), and the seconds cv2.inpaint took. With --downscale F the
+photo and the truth are binned F x F (area average, as objnerf bins its training views; sizes
+floored) and a binned mask pixel is set when any of its pixels is, as objnerf scores.
 """
 
 import argparse
@@ -35,6 +37,24 @@ def grow(mask, r):
     return cv2.dilate(mask, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) if r > 0 else mask
 
 
+def binned(img, f):
+    """F x F area average, the size floored (objnerf's `downscale_premultiplied` on opaque images)."""
+    if f == 1:
+        return img
+    h, w = img.shape[0] // f * f, img.shape[1] // f * f
+    x = img[:h, :w].astype(np.float64)
+    x = x.reshape(h // f, f, w // f, f, -1).mean(axis=(1, 3))
+    return np.round(x).clip(0, 255).astype(np.uint8).squeeze()
+
+
+def any_binned(mask, f):
+    """A binned pixel is set when any of its F x F pixels is."""
+    if f == 1:
+        return mask
+    h, w = mask.shape[0] // f * f, mask.shape[1] // f * f
+    return mask[:h, :w].reshape(h // f, f, w // f, f).max(axis=(1, 3))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("scene")
@@ -44,6 +64,7 @@ def main():
     ap.add_argument("--dilate", type=int, default=4)
     ap.add_argument("--score-dilate", type=int, default=4)
     ap.add_argument("--radius", type=float, default=3.0)
+    ap.add_argument("--downscale", type=int, default=1)
     ap.add_argument("--out-images")
     a = ap.parse_args()
     objects = a.objects.split(",")
@@ -51,25 +72,27 @@ def main():
     views = []
     total = {"sse": 0.0, "n": 0, "inside": {o: {"sse": 0.0, "n": 0} for o in objects}, "seconds": 0.0}
     for v in a.views.split(","):
-        img = read(os.path.join(a.scene, "images", v))
-        removed = np.zeros(img.shape[:2], np.uint8)
+        f = a.downscale
+        img = binned(read(os.path.join(a.scene, "images", v)), f)
+        removed = np.zeros(img.shape[:2], np.uint8)  # the removal's hole, grown at full size
         for o in objects:
             m = os.path.join(a.segment, "masks", o, os.path.splitext(v)[0] + ".png")
             if os.path.isfile(m):
-                removed |= (read(m, cv2.IMREAD_GRAYSCALE) > 127).astype(np.uint8)
-        hole = grow(removed, a.dilate)
+                full = (read(m, cv2.IMREAD_GRAYSCALE) > 127).astype(np.uint8)
+                removed |= any_binned(grow(full, a.dilate), f)
+        hole = removed
         t = time.perf_counter()
         filled = cv2.inpaint(img, hole * 255, a.radius, cv2.INPAINT_TELEA)
         secs = time.perf_counter() - t
         if a.out_images:
             os.makedirs(a.out_images, exist_ok=True)
             cv2.imwrite(os.path.join(a.out_images, v), filled)
-        truth = read(os.path.join(truth_dir, v)).astype(np.float64) / 255.0
+        truth = binned(read(os.path.join(truth_dir, v)), f).astype(np.float64) / 255.0
         err = ((filled.astype(np.float64) / 255.0 - truth) ** 2).sum(axis=2)
         rec = {"view": v, "sse": float(err.sum()) / 3.0, "n": int(err.size), "inside": {}, "seconds": secs}
         for o in objects:
             tm = read(os.path.join(a.scene, "truth", "masks", o, v), cv2.IMREAD_GRAYSCALE) > 127
-            inside = grow(tm.astype(np.uint8), a.score_dilate).astype(bool)
+            inside = any_binned(grow(tm.astype(np.uint8), a.score_dilate), f).astype(bool)
             rec["inside"][o] = {"sse": float(err[inside].sum()) / 3.0, "n": int(inside.sum())}
             total["inside"][o]["sse"] += rec["inside"][o]["sse"]
             total["inside"][o]["n"] += rec["inside"][o]["n"]

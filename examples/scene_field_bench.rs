@@ -55,6 +55,7 @@ fn main() -> objnerf::Result<()> {
         prune_after: env("SF_PRUNE_AFTER").unwrap_or(d.prune_after),
         carve_weight: env("SF_CARVE").unwrap_or(d.carve_weight),
         distortion_weight: env("SF_DIST").unwrap_or(d.distortion_weight),
+        prune_alpha: env("SF_PRUNE_ALPHA").unwrap_or(d.prune_alpha),
         ..Default::default()
     };
     // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").

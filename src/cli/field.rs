@@ -92,6 +92,9 @@ impl TrainCmd {
                 fit_scene(&scene, &masks, &opts, resume, &mut progress)?
             }
             None => {
+                let space =
+                    objnerf::field::layout::choose_space(&scene, self.space, opts.downscale)?;
+                eprintln!("space: {} ({})", space.space.name(), space.why);
                 let scene_opts = SceneFitOptions {
                     space: self.space,
                     fit: opts.clone(),

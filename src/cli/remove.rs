@@ -71,10 +71,11 @@ impl RemoveCmd {
             overwrite: self.overwrite,
             ..defaults
         };
+        let space = objnerf::field::layout::choose_space(&scene, opts.field.space, self.downscale)?;
+        eprintln!("space: {} ({})", space.space.name(), space.why);
         let bars = Bars::default();
         let r = remove(&scene, &self.segment, &opts, &self.out, &bars)?;
         if let Some(s) = &r.train.setup {
-            println!("space: {} ({})", s.space.name(), s.why);
             println!(
                 "grid: {:?} ({} vertices), {} MiB with optimiser state",
                 s.final_dims,

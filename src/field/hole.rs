@@ -52,11 +52,11 @@ fn hole_of(v: &View) -> Vec<bool> {
     }
 }
 
-/// Render every view of `views` (colour on black, alpha, depth).
+/// Render every view of `views` (colour on white, alpha, depth).
 pub fn render_all(field: &Field, opt: &RenderOptions, views: &[View]) -> Vec<Rendered> {
     views
         .iter()
-        .map(|v| render_view(field, opt, v, [0.0; 3]))
+        .map(|v| render_view(field, opt, v, [1.0; 3]))
         .collect()
 }
 

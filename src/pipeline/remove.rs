@@ -467,24 +467,30 @@ fn score_against_truth(
     let mut inside: Vec<(Pixels, Pixels)> = vec![(vec![], vec![]); objects.len()];
     for &i in &scored {
         let v = &views[i];
+        // Scored at the training resolution: the truth binned as the photos were.
         let truth = crate::scene::io::read_rgb(&crate::scene::io::mask_file(&truth_dir, &v.name))?;
-        if truth.dimensions() != (v.width, v.height) {
-            // Scores are at training resolution; a downscaled run is scored on binned truth.
-            return Ok(None);
-        }
-        let t: Vec<[f32; 3]> = truth
-            .pixels()
-            .map(|p| p.0.map(|c| c as f32 / 255.0))
+        let factor = (truth.width() / v.width.max(1)).max(1);
+        let rgba = image::DynamicImage::ImageRgb8(truth).to_rgba8();
+        let (_, _, binned) = crate::field::view::downscale_premultiplied(&rgba, factor);
+        let t: Vec<[f32; 3]> = binned
+            .iter()
+            .map(|p| [p[0], p[1], p[2]].map(|c| c as f32 / 255.0))
             .collect();
         frame_psnr.push(psnr(&renders[i].rgb, &t));
         for (k, obj) in objects.iter().enumerate() {
             let mask_path =
                 crate::scene::io::mask_file(&root.join("truth/masks").join(obj), &v.name);
             let m = dilate(&read_mask(&mask_path)?, SCORE_DILATE_PX);
-            for (p, q) in m.pixels().enumerate() {
-                if is_object(q.0[0]) {
-                    inside[k].0.push(renders[i].rgb[p]);
-                    inside[k].1.push(t[p]);
+            for p in 0..(v.width * v.height) {
+                // A binned pixel is inside when any of its full-resolution pixels is.
+                let (x, y) = (p % v.width * factor, p / v.width * factor);
+                let hit = (0..factor * factor).any(|s| {
+                    m.get_pixel_checked(x + s % factor, y + s / factor)
+                        .is_some_and(|q| is_object(q.0[0]))
+                });
+                if hit {
+                    inside[k].0.push(renders[i].rgb[p as usize]);
+                    inside[k].1.push(t[p as usize]);
                 }
             }
         }

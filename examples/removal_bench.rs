@@ -1,0 +1,259 @@
+//! Object removal on the demo scene: PSNR inside the removed mug's true mask (grown by 4 px) and
+//! over the whole frame, on the held-out views (every 6th), against training time, for the
+//! scene field with and without the fill of the never-seen hole, beside the per-view 2D
+//! inpainting baseline (OpenCV's Telea, `examples/removal_telea.py`, in its own venv). Each
+//! removal is its own `objnerf remove` process, so each report has its own peak RSS. Writes
+//! `OUT/removal_bench.json` and `OUT/removal_bench.svg`.
+//!
+//! cargo build --release --examples && target/release/examples/removal_bench \
+//!     [--steps 1000,2000,4000] [--scene DEMO_DIR --segment SEGMENT_DIR] [--out examples/results]
+//!
+//! Without `--scene` the default demo scene is made and the mug segmented from its one click in a
+//! temporary folder.
+
+#[path = "support/bench.rs"]
+mod bench;
+#[path = "support/chart.rs"]
+mod chart_support;
+
+use chart_support::{panel, series, Series};
+use plotters::prelude::*;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn objnerf() -> PathBuf {
+    let exe = std::env::current_exe().expect("own path");
+    exe.parent()
+        .and_then(|p| p.parent())
+        .expect("target/release")
+        .join("objnerf")
+}
+
+fn run_ok(args: &[String]) -> std::process::Output {
+    let out = Command::new(objnerf())
+        .args(args)
+        .output()
+        .expect("run objnerf");
+    if !out.status.success() {
+        panic!(
+            "objnerf {} failed:\n{}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    out
+}
+
+fn arg(name: &str) -> Option<String> {
+    let a: Vec<String> = std::env::args().collect();
+    a.iter()
+        .position(|x| x == name)
+        .and_then(|i| a.get(i + 1).cloned())
+}
+
+fn main() {
+    let out_dir = PathBuf::from(arg("--out").unwrap_or("examples/results".into()));
+    let steps: Vec<usize> = arg("--steps")
+        .unwrap_or("1000,2000,4000".into())
+        .split(',')
+        .map(|s| s.parse().expect("--steps N,N,..."))
+        .collect();
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let (scene, segment) = match (arg("--scene"), arg("--segment")) {
+        (Some(s), Some(g)) => (PathBuf::from(s), PathBuf::from(g)),
+        _ => make_scene_and_segment(tmp.path()),
+    };
+    let held: Vec<String> = (0..36)
+        .filter(|i| i % 6 == 3)
+        .map(|i| format!("view_{i:03}.png"))
+        .collect();
+    let mut runs = Vec::new();
+    for &s in &steps {
+        for fill in [true, false] {
+            let dir = tmp.path().join(format!("rm_{s}_{fill}"));
+            let mut a: Vec<String> = ["remove", &scene.display().to_string(), "--segment"]
+                .map(String::from)
+                .to_vec();
+            a.push(segment.display().to_string());
+            a.extend(
+                [
+                    "--object",
+                    "mug",
+                    "--hold-out-every",
+                    "6",
+                    "--time-budget",
+                    "1000000",
+                ]
+                .map(String::from),
+            );
+            a.extend([
+                "--steps".to_string(),
+                s.to_string(),
+                "--out".to_string(),
+                dir.display().to_string(),
+            ]);
+            if !fill {
+                a.push("--no-fill".into());
+            }
+            let t = std::time::Instant::now();
+            run_ok(&a);
+            let wall = t.elapsed().as_secs_f64();
+            let r: Value =
+                serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
+                    .unwrap();
+            let rec = json!({
+                "fill": fill,
+                "steps": s,
+                "wall_seconds": wall,
+                "train_seconds": r["seconds"]["train"],
+                "psnr": r["scores"]["psnr"],
+                "hole_psnr": r["scores"]["hole_psnr"][0][1],
+                "filled_px": r["filled_px"],
+                "unseen_fraction": unseen_fraction(&r),
+                "peak_rss_mib": r["peak_rss_mib"],
+                "load_average": bench::machine().load_average,
+            });
+            eprintln!("{rec}");
+            runs.push(rec);
+        }
+    }
+    let telea = telea(&scene, &segment, &held);
+    eprintln!("telea: {telea}");
+    let result = json!({
+        "what": "demo scene, mug removed from its one-click segmentation; PSNR on the 6 held-out views against truth/removed/mug",
+        "command": std::env::args().collect::<Vec<_>>().join(" "),
+        "machine": bench::machine(),
+        "commit": bench::git_commit(),
+        "runs": runs,
+        "telea": telea,
+    });
+    std::fs::create_dir_all(&out_dir).expect("out dir");
+    let json_path = out_dir.join("removal_bench.json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&result).unwrap()).expect("write JSON");
+    chart(&result, &out_dir.join("removal_bench.svg")).expect("chart");
+    eprintln!("wrote {} and removal_bench.svg", json_path.display());
+}
+
+/// The fraction of the held-out views' hole pixels that no training view saw.
+fn unseen_fraction(r: &Value) -> f64 {
+    let held: Vec<&str> = r["held_out"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|v| v.as_str())
+        .collect();
+    let (mut hole, mut unseen) = (0.0, 0.0);
+    for h in r["holes"].as_array().unwrap() {
+        if held.contains(&h["view"].as_str().unwrap_or("")) {
+            hole += h["hole_px"].as_f64().unwrap_or(0.0);
+            unseen += h["unseen_px"].as_f64().unwrap_or(0.0);
+        }
+    }
+    unseen / hole.max(1.0)
+}
+
+fn make_scene_and_segment(tmp: &Path) -> (PathBuf, PathBuf) {
+    let scene = tmp.join("demo");
+    run_ok(&[
+        "demo-scene".into(),
+        "--out".into(),
+        scene.display().to_string(),
+    ]);
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(scene.join("truth/objects.json")).unwrap())
+            .unwrap();
+    let mug = truth["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|o| o["name"] == "mug")
+        .unwrap();
+    let seg = tmp.join("seg");
+    run_ok(&[
+        "segment".into(),
+        scene.display().to_string(),
+        "--view".into(),
+        mug["view"].as_str().unwrap().into(),
+        "--object".into(),
+        "mug".into(),
+        "--point".into(),
+        format!("{},{}", mug["click"][0], mug["click"][1]),
+        "--out".into(),
+        seg.display().to_string(),
+    ]);
+    (scene, seg)
+}
+
+/// Telea on the held-out views, over the region the removal leaves out.
+fn telea(scene: &Path, segment: &Path, views: &[String]) -> Value {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let py = bench::ensure_venv(
+        &root.join("target/venv-opencv"),
+        "import cv2, numpy",
+        &["opencv-python-headless", "numpy"],
+    )
+    .expect("the baseline's venv");
+    let out = Command::new(py)
+        .arg(root.join("examples/removal_telea.py"))
+        .arg(scene)
+        .arg(segment)
+        .args(["--objects", "mug", "--views", &views.join(",")])
+        .output()
+        .expect("run removal_telea.py");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("its JSON");
+    json!({
+        "hole_psnr": v["psnr_inside"]["mug"],
+        "psnr": v["psnr_frame_mean"],
+        "seconds": v["seconds"],
+    })
+}
+
+fn chart(result: &Value, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
+    let runs = result["runs"].as_array().cloned().unwrap_or_default();
+    let name = |r: &Value| {
+        if r["fill"] == true {
+            "scene field, hole filled"
+        } else {
+            "scene field, no fill"
+        }
+        .to_string()
+    };
+    let telea = &result["telea"];
+    let with_telea = |mut s: Series, key: &str| {
+        if let (Some(x), Some(y)) = (telea["seconds"].as_f64(), telea[key].as_f64()) {
+            s.push(("Telea 2D inpainting (per view)".into(), vec![(x, y)]));
+        }
+        s
+    };
+    let root = SVGBackend::new(path, (1100, 480)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let parts = root.split_evenly((1, 2));
+    let hole = series(&runs, name, |r| {
+        Some((r["train_seconds"].as_f64()?, r["hole_psnr"].as_f64()?))
+    });
+    panel(
+        &parts[0],
+        "mug removed: PSNR inside its true mask (+4 px)",
+        "training seconds (2-core machine)",
+        "PSNR (dB), held-out views",
+        &with_telea(hole, "hole_psnr"),
+    )?;
+    let frame = series(&runs, name, |r| {
+        Some((r["train_seconds"].as_f64()?, r["psnr"].as_f64()?))
+    });
+    panel(
+        &parts[1],
+        "mug removed: full-frame PSNR",
+        "training seconds (2-core machine)",
+        "PSNR (dB), held-out views",
+        &with_telea(frame, "psnr"),
+    )?;
+    root.present()?;
+    Ok(())
+}
