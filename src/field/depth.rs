@@ -140,6 +140,36 @@ mod tests {
     };
     use glam::{DVec2, DVec3};
 
+    /// A scene of one view "a" seen by `cam` from `pose`.
+    fn one_view_scene(
+        cam: &Camera,
+        pose: Pose,
+        depth_path: Option<std::path::PathBuf>,
+        features: Vec<Feature>,
+    ) -> Scene {
+        Scene {
+            source: "mem".into(),
+            format: SourceFormat::Demo,
+            cameras: vec![SceneCamera {
+                id: 1,
+                camera: cam.clone(),
+            }],
+            images: vec![ImageView {
+                id: 1,
+                name: "a".into(),
+                path: "a.png".into(),
+                camera: 0,
+                pose,
+                mask_path: None,
+                depth_path,
+                features,
+            }],
+            points: Vec::new(),
+            depth_scale: 1000.0,
+            applied_transform: None,
+        }
+    }
+
     /// A point seen through its track becomes a target at its feature's pixel, as the distance
     /// along that pixel's ray; a feature outside the mask gives none.
     #[test]
@@ -155,24 +185,8 @@ mod tests {
                 point: Some(i),
             })
             .collect();
-        let scene = Scene {
-            source: "mem".into(),
-            format: SourceFormat::Demo,
-            cameras: vec![SceneCamera {
-                id: 1,
-                camera: cam.clone(),
-            }],
-            images: vec![ImageView {
-                id: 1,
-                name: "a".into(),
-                path: "a.png".into(),
-                camera: 0,
-                pose,
-                mask_path: None,
-                depth_path: None,
-                features: features.clone(),
-            }],
-            points: pts
+        let mut scene = one_view_scene(&cam, pose, None, features.clone());
+        scene.points = pts
                 .iter()
                 .enumerate()
                 .map(|(i, p)| Point3D {
@@ -185,10 +199,7 @@ mod tests {
                         feature: i,
                     }],
                 })
-                .collect(),
-            depth_scale: 1000.0,
-            applied_transform: None,
-        };
+                .collect();
         // Mask: the left half of the image is the object.
         let rgba = (0..1600)
             .map(|i| if i % 40 < 20 { [9, 9, 9, 255] } else { [0; 4] })
@@ -236,27 +247,7 @@ mod tests {
         };
         let depth = dir.path().join("d.png");
         crate::scene::io::write_depth_png_mm(&depth, &dm).unwrap();
-        let mut scene = Scene {
-            source: "mem".into(),
-            format: SourceFormat::Demo,
-            cameras: vec![SceneCamera {
-                id: 1,
-                camera: cam.clone(),
-            }],
-            images: vec![ImageView {
-                id: 1,
-                name: "a".into(),
-                path: "a.png".into(),
-                camera: 0,
-                pose,
-                mask_path: None,
-                depth_path: Some(depth.clone()),
-                features: Vec::new(),
-            }],
-            points: Vec::new(),
-            depth_scale: 1000.0,
-            applied_transform: None,
-        };
+        let mut scene = one_view_scene(&cam, pose, Some(depth.clone()), Vec::new());
         for f in [1u32, 2, 3] {
             let c = cam.binned(f);
             let rgba = vec![[9, 9, 9, 255]; (c.width * c.height) as usize];

@@ -115,18 +115,7 @@ pub fn fit_scene(
         return Err(Error::invalid("--downscale must be at least 1"));
     }
     let mut views = load_views(scene, masks, opts.downscale)?;
-    let depth_targets = match opts.depth {
-        DepthMode::None => 0,
-        DepthMode::Sparse => add_sparse_depth(&mut views, scene, opts.downscale)?,
-        DepthMode::Dense => add_dense_depth(&mut views, scene, opts.downscale)?,
-    };
-    views.retain(|v| !opts.exclude_views.contains(&v.name));
-    if views.is_empty() {
-        return Err(Error::invalid(format!(
-            "{}: no views left to train on",
-            scene.source.display()
-        )));
-    }
+    let depth_targets = depth_and_training_views(&mut views, scene, opts)?;
     let cfg = TrainConfig {
         seed: opts.seed,
         steps: opts.steps,
@@ -157,6 +146,28 @@ pub fn fit_scene(
         finest: trainer.finest.clone(),
     };
     Ok(Fitted { trainer, report })
+}
+
+/// Add the depth targets `opts` asks for to `views`, then keep only the views it trains on;
+/// returns how many targets there are.
+fn depth_and_training_views(
+    views: &mut Vec<View>,
+    scene: &Scene,
+    opts: &FitOptions,
+) -> Result<usize> {
+    let targets = match opts.depth {
+        DepthMode::None => 0,
+        DepthMode::Sparse => add_sparse_depth(views, scene, opts.downscale)?,
+        DepthMode::Dense => add_dense_depth(views, scene, opts.downscale)?,
+    };
+    views.retain(|v| !opts.exclude_views.contains(&v.name));
+    if views.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: no views left to train on",
+            scene.source.display()
+        )));
+    }
+    Ok(targets)
 }
 
 /// How to train a scene field: the whole scene, or the scene without some objects (their
@@ -262,18 +273,7 @@ impl SceneFit {
             }
         }
         // Depth targets where the loss applies (a removed object's points give none).
-        let depth_targets = match fit.depth {
-            DepthMode::None => 0,
-            DepthMode::Sparse => add_sparse_depth(&mut views, scene, fit.downscale)?,
-            DepthMode::Dense => add_dense_depth(&mut views, scene, fit.downscale)?,
-        };
-        views.retain(|v| !fit.exclude_views.contains(&v.name));
-        if views.is_empty() {
-            return Err(Error::invalid(format!(
-                "{}: no views left to train on",
-                scene.source.display()
-            )));
-        }
+        let depth_targets = depth_and_training_views(&mut views, scene, fit)?;
         let cfg = TrainConfig {
             seed: fit.seed,
             steps: fit.steps,
