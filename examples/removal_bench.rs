@@ -6,7 +6,8 @@
 //! `OUT/removal_bench.json` and `OUT/removal_bench.svg`.
 //!
 //! cargo build --release --examples && target/release/examples/removal_bench \
-//!     [--steps 1000,2000,4000] [--scene DEMO_DIR --segment SEGMENT_DIR] [--out examples/results]
+//!     [--steps 1000,2000,4000] [--downscale 1] [--scene DEMO_DIR --segment SEGMENT_DIR]
+//!     [--out examples/results]
 //!
 //! Without `--scene` the default demo scene is made and the mug segmented from its one click in a
 //! temporary folder.
@@ -59,6 +60,7 @@ fn main() {
         .split(',')
         .map(|s| s.parse().expect("--steps N,N,..."))
         .collect();
+    let downscale = arg("--downscale").unwrap_or("1".into());
     let tmp = tempfile::tempdir().expect("temp dir");
     let (scene, segment) = match (arg("--scene"), arg("--segment")) {
         (Some(s), Some(g)) => (PathBuf::from(s), PathBuf::from(g)),
@@ -118,10 +120,11 @@ fn main() {
             runs.push(rec);
         }
     }
-    let telea = telea(&scene, &segment, &held);
+    let telea = telea(&scene, &segment, &held, &downscale);
     eprintln!("telea: {telea}");
     let result = json!({
         "what": "demo scene, mug removed from its one-click segmentation; PSNR on the 6 held-out views against truth/removed/mug",
+        "downscale": downscale,
         "command": std::env::args().collect::<Vec<_>>().join(" "),
         "machine": bench::machine(),
         "commit": bench::git_commit(),
@@ -186,7 +189,7 @@ fn make_scene_and_segment(tmp: &Path) -> (PathBuf, PathBuf) {
 }
 
 /// Telea on the held-out views, over the region the removal leaves out.
-fn telea(scene: &Path, segment: &Path, views: &[String]) -> Value {
+fn telea(scene: &Path, segment: &Path, views: &[String], downscale: &str) -> Value {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let py = bench::ensure_venv(
         &root.join("target/venv-opencv"),
@@ -198,7 +201,14 @@ fn telea(scene: &Path, segment: &Path, views: &[String]) -> Value {
         .arg(root.join("examples/removal_telea.py"))
         .arg(scene)
         .arg(segment)
-        .args(["--objects", "mug", "--views", &views.join(",")])
+        .args([
+            "--objects",
+            "mug",
+            "--views",
+            &views.join(","),
+            "--downscale",
+            downscale,
+        ])
         .output()
         .expect("run removal_telea.py");
     assert!(

@@ -187,19 +187,19 @@ mod tests {
             .collect();
         let mut scene = one_view_scene(&cam, pose, None, features.clone());
         scene.points = pts
-                .iter()
-                .enumerate()
-                .map(|(i, p)| Point3D {
-                    id: i as u64 + 1,
-                    xyz: *p,
-                    rgb: [0; 3],
-                    error: 0.0,
-                    track: vec![TrackElement {
-                        image: 0,
-                        feature: i,
-                    }],
-                })
-                .collect();
+            .iter()
+            .enumerate()
+            .map(|(i, p)| Point3D {
+                id: i as u64 + 1,
+                xyz: *p,
+                rgb: [0; 3],
+                error: 0.0,
+                track: vec![TrackElement {
+                    image: 0,
+                    feature: i,
+                }],
+            })
+            .collect();
         // Mask: the left half of the image is the object.
         let rgba = (0..1600)
             .map(|i| if i % 40 < 20 { [9, 9, 9, 255] } else { [0; 4] })

@@ -52,6 +52,52 @@ fn hole_of(v: &View) -> Vec<bool> {
     }
 }
 
+/// A cell lies in the removed objects' volume when at least this fraction of the views that see
+/// its centre see it inside their hole (voting, as the object field's visual hull).
+pub const REMOVED_HULL_VOTE: f32 = 0.8;
+
+/// Empty the removed objects' volume: the cells whose centre projects into the hole of at least
+/// [`REMOVED_HULL_VOTE`] of the views that see it (two at least) get no density. No ray with a
+/// loss crosses that volume, so it would keep whatever density it started with (a remnant of the
+/// object, fog); what lies behind it stays, and the fill's depth targets can raise the ground
+/// there again (the cells stay occupied). Returns the cells emptied.
+pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
+    let holes: Vec<Vec<bool>> = views.iter().map(hole_of).collect();
+    let cells = field.occupied_cell_list();
+    let space = field.space.clone();
+    let inside: Vec<[usize; 3]> = cells
+        .into_par_iter()
+        .filter(|&c| {
+            let Some(p) = space.unmap(field.cell_center(c)) else {
+                return false;
+            };
+            let (mut seen, mut hole) = (0usize, 0usize);
+            for (v, h) in views.iter().zip(&holes) {
+                let Some((u, w)) = v.project(p) else { continue };
+                if u < 0.0 || w < 0.0 || u >= v.width as f32 || w >= v.height as f32 {
+                    continue;
+                }
+                seen += 1;
+                hole += h[(w as u32 * v.width + u as u32) as usize] as usize;
+            }
+            seen >= 2 && hole as f32 >= REMOVED_HULL_VOTE * seen as f32
+        })
+        .collect();
+    let empty = -30.0 - field.shift();
+    let ch = field.grid.channels;
+    for c in &inside {
+        for i in 0..8 {
+            let v = field
+                .grid
+                .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
+            if v != super::grid::NONE {
+                field.grid.data[v as usize * ch] = empty;
+            }
+        }
+    }
+    inside.len()
+}
+
 /// Render every view of `views` (colour on white, alpha, depth).
 pub fn render_all(field: &Field, opt: &RenderOptions, views: &[View]) -> Vec<Rendered> {
     views

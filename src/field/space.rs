@@ -184,6 +184,34 @@ impl Space {
         }
     }
 
+    /// The world point at space coordinates `q` (the inverse of [`Space::map`]); `None` for a
+    /// contracted point at infinity or an NDC point at or past z = +1.
+    pub fn unmap(&self, q: Vec3) -> Option<Vec3> {
+        match self {
+            Space::Box => Some(q),
+            Space::Unbounded { center, radius } => {
+                let r = q.length();
+                let x = if r <= 1.0 {
+                    q
+                } else if r < 2.0 {
+                    q / r / (2.0 - r)
+                } else {
+                    return None;
+                };
+                Some(Vec3::from_array(*center) + x * *radius)
+            }
+            Space::Ndc(n) => {
+                let w = 1.0 - q.z / n.z_scale;
+                if w <= 1e-6 {
+                    return None;
+                }
+                let z = 2.0 * n.near / w;
+                let c = Vec3::new(q.x * z / n.scale_xy[0], q.y * z / n.scale_xy[1], z);
+                Some(n.rot().transpose() * c + Vec3::from_array(n.center))
+            }
+        }
+    }
+
     /// The path of the world ray `o + d t` (d unit) through the space box `lo..hi`, or `None`
     /// when it misses.
     pub fn ray_path(&self, o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<RayPath> {
@@ -393,6 +421,39 @@ mod tests {
                 "{mapped} vs {}",
                 so + sd * s
             );
+        }
+    }
+
+    #[test]
+    fn unmap_inverts_map_in_every_space() {
+        let ndc = Space::Ndc(NdcSpace {
+            rotation: [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+            center: [0.1, -2.0, 0.5],
+            scale_xy: [2.1, 2.8],
+            near: 0.7,
+            z_scale: 1.5,
+        });
+        let spaces = [
+            Space::Box,
+            Space::Unbounded {
+                center: [0.2, -0.1, 0.3],
+                radius: 1.7,
+            },
+            ndc,
+        ];
+        for sp in spaces {
+            for p in [
+                Vec3::new(0.3, 1.0, 0.2),
+                Vec3::new(-2.0, 4.0, 1.5),
+                Vec3::new(5.0, 9.0, -3.0),
+            ] {
+                let q = sp.map(p).unwrap();
+                let back = sp.unmap(q).unwrap();
+                assert!(
+                    (back - p).length() < 1e-3 * (1.0 + p.length()),
+                    "{sp:?}: {p} -> {q} -> {back}"
+                );
+            }
         }
     }
 }

@@ -17,7 +17,7 @@
 use crate::error::{Error, Result};
 use crate::field::eval::{psnr, Rendered};
 use crate::field::holdout::is_held_out;
-use crate::field::hole::{fill_unseen, find_unseen, render_all, ViewHole};
+use crate::field::hole::{clear_removed_volume, fill_unseen, find_unseen, render_all, ViewHole};
 use crate::field::session::StopRule;
 use crate::field::{model_notes, FieldKind, RenderOptions, SceneFit, SceneFitOptions, TrainReport};
 use crate::scene::io::read_mask;
@@ -42,7 +42,8 @@ pub struct RemoveOptions {
     pub hold_out_every: usize,
     /// Fill the part of the hole no view saw (see the module notes).
     pub fill: bool,
-    /// Fraction of the steps (and of the time budget) trained before the hole is filled.
+    /// Fraction of the steps (and of the time budget) trained before the removed volume is
+    /// emptied and the hole filled.
     pub fill_after: f32,
     pub overwrite: bool,
 }
@@ -202,8 +203,10 @@ pub fn remove(
     Ok(report)
 }
 
-/// Train; with the fill, stop at `fill_after` of the schedule, find the unseen hole, give it
-/// targets and train on. Returns the pixels filled and the seconds the hole took.
+/// Train to `fill_after` of the schedule, empty the removed objects' volume, find the unseen
+/// hole and give it targets (with the fill), and train on without pruning (the fill raises the
+/// ground again where the objects' volume reached it). Returns the pixels filled and the seconds
+/// the hole took.
 fn train_and_fill(
     fit: &mut SceneFit,
     field_opts: &SceneFitOptions,
@@ -215,11 +218,6 @@ fn train_and_fill(
     progress.begin("train background", steps as u64);
     let mut report =
         |s: &crate::field::train::StepStats| progress.advance(s.step as u64, s.detail());
-    if !opts.fill {
-        fit.train(&StopRule::for_budget(budget), &mut report);
-        progress.end();
-        return (0, 0.0);
-    }
     let split = opts.fill_after.clamp(0.0, 1.0);
     let first = StopRule {
         until_step: Some((steps as f32 * split) as usize),
@@ -229,11 +227,17 @@ fn train_and_fill(
     };
     fit.train(&first, &mut report);
     let t = Instant::now();
-    let renders = render_all(&fit.trainer.field, &RenderOptions::default(), &fit.views);
-    let holes = find_unseen(&fit.views, &renders, fit.views.len());
-    let filled = fill_unseen(&mut fit.views, &holes, &renders);
-    drop(renders);
-    fit.rebuild_rays();
+    // What the objects occupied is empty now; then the hole is looked for behind it.
+    fit.trainer.cfg.prune_every = 0;
+    clear_removed_volume(&mut fit.trainer.field, &fit.views);
+    let mut filled = 0;
+    if opts.fill {
+        let renders = render_all(&fit.trainer.field, &RenderOptions::default(), &fit.views);
+        let holes = find_unseen(&fit.views, &renders, fit.views.len());
+        filled = fill_unseen(&mut fit.views, &holes, &renders);
+        drop(renders);
+        fit.rebuild_rays();
+    }
     let t_hole = t.elapsed().as_secs_f64();
     let rest = StopRule {
         seconds_before: fit.seconds(),
