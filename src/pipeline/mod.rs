@@ -4,5 +4,6 @@
 
 pub mod demo;
 pub mod extract;
+pub mod render_edit;
 
 pub use extract::{extract, ExtractOptions, ExtractReport};
