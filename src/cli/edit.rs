@@ -39,6 +39,10 @@ pub struct RenderEditCmd {
     /// Sample spacing in voxels of each field's grid (smaller: slower, finer).
     #[arg(long, default_value_t = RenderOptions::default().step)]
     step: f32,
+    /// Samples less opaque than this are skipped (and cells that cannot reach it are never
+    /// evaluated).
+    #[arg(long, default_value_t = RenderOptions::default().alpha_thresh)]
+    alpha_thresh: f32,
     /// Frames per second of --views and --orbit renders (a path file has its own).
     #[arg(long, default_value_t = RenderEditOptions::default().fps)]
     fps: f64,
@@ -75,6 +79,7 @@ impl RenderEditCmd {
             passes,
             render: RenderOptions {
                 step: self.step,
+                alpha_thresh: self.alpha_thresh,
                 ..Default::default()
             },
             fps: self.fps,

@@ -148,7 +148,7 @@ impl DemoSceneCmd {
                 .passes
                 .parse()
                 .map_err(|e| Error::invalid(format!("--passes: {e}")))?;
-            let edit = load_edit(EditFile::read(edit)?)?;
+            let edit = load_edit(EditFile::read(edit)?, None)?;
             let path = CameraPath::read(path, &PathFrame::Data)?;
             let n = write_edit_truth(
                 &edit,

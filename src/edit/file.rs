@@ -246,7 +246,7 @@ impl EditFile {
 
     /// Parse an edit file's bytes; `path` names it in errors and anchors relative model paths.
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<EditFile> {
-        let v: Value = crate::scene::formats::nerfstudio::parse_json(path, bytes)?;
+        let v: Value = crate::scene::formats::json::parse_json(path, bytes)?;
         Self::from_value(path, &v).map_err(|m| Error::format(path, m))
     }
 

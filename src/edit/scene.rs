@@ -7,7 +7,7 @@ use super::recolour::Recolour;
 use super::similarity::Similarity;
 use crate::error::{Error, Result};
 use crate::field::io::{load_field, Model};
-use crate::field::{Field, Space};
+use crate::field::{Field, RenderOptions, Space};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -71,15 +71,23 @@ pub fn default_pivot(field: &Field) -> Option<DVec3> {
     (field.space == Space::Box).then(|| 0.5 * (field.box_min + field.box_max).as_dvec3())
 }
 
-/// Load every model an edit names (each file once) and place its objects.
-pub fn load_edit(file: EditFile) -> Result<LoadedEdit> {
+/// Load every model an edit names (each file once) and place its objects. With `render`, each
+/// field's occupancy is pruned for those render options: cells whose densest corner stays below
+/// the alpha threshold at that step are skipped without being evaluated (exact: such samples
+/// are dropped anyway), so empty bricks are jumped over.
+pub fn load_edit(file: EditFile, render: Option<&RenderOptions>) -> Result<LoadedEdit> {
     let at = |field: String, e: Error| Error::format(&file.path, format!("{field}: {e}"));
     let mut cache: HashMap<PathBuf, Arc<Model>> = HashMap::new();
     let mut load = |p: &PathBuf| -> Result<Arc<Model>> {
         if let Some(m) = cache.get(p) {
             return Ok(m.clone());
         }
-        let m = Arc::new(load_field(p)?);
+        let mut m = load_field(p)?;
+        if let Some(r) = render {
+            let f = &mut m.field;
+            f.prune_occupancy(r.step * f.voxel / f.config.base_voxel, r.alpha_thresh);
+        }
+        let m = Arc::new(m);
         cache.insert(p.clone(), m.clone());
         Ok(m)
     };

@@ -46,8 +46,7 @@ pub fn edit_template(
 ) -> Result<EditFile> {
     let report_path = run.join("report.json");
     let bytes = std::fs::read(&report_path).map_err(|e| Error::io(&report_path, e))?;
-    let report: serde_json::Value =
-        crate::scene::formats::nerfstudio::parse_json(&report_path, &bytes)?;
+    let report: serde_json::Value = crate::scene::formats::json::parse_json(&report_path, &bytes)?;
     let names: Vec<String> = report
         .get("objects")
         .and_then(|o| o.as_array())

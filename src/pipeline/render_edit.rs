@@ -153,7 +153,7 @@ fn frame_images(f: &Frame, passes: Passes, metres_per_unit: f64) -> FrameImages 
 
 /// Read and check the edit (and every model it names) and the path; nothing is written.
 pub fn prepare(edit_path: &Path, opts: &RenderEditOptions) -> Result<(LoadedEdit, CameraPath)> {
-    let edit = load_edit(EditFile::read(edit_path)?)?;
+    let edit = load_edit(EditFile::read(edit_path)?, Some(&opts.render))?;
     if edit.objects.len() > 254 {
         return Err(Error::format(
             edit_path,

@@ -9,7 +9,7 @@
 //! distortion. Axis flips go through `frames.rs`.
 
 use crate::error::{Error, Result};
-use crate::scene::formats::nerfstudio::{parse_json, read_json_file};
+use crate::scene::formats::json::{parse_json, read_json_file};
 use crate::scene::{Camera, CameraModel, Pose, Scene};
 use crate::util::write_atomic;
 use glam::{DMat3, DMat4, DVec3};
