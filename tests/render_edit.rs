@@ -604,6 +604,23 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
         "--no-video",
     ]);
     assert!(out.join("frame_00001.png").is_file() && out.join("camera_path.json").is_file());
+    // ... and along a scene's own views.
+    let (_, scene, _) = fixture();
+    let out = t.join("views");
+    ok(&[
+        "render-edit",
+        s(&edit),
+        "--views",
+        s(scene),
+        "--size",
+        "32x24",
+        "--out",
+        s(&out),
+        "--no-video",
+    ]);
+    let back = CameraPath::read(&out.join("camera_path.json"), &PathFrame::Data).unwrap();
+    assert_eq!(back.cameras.len(), 36);
+    assert!(out.join("frame_00035.png").is_file());
     let colour = t.join("edits/colour.json");
     ok(&[
         "edit-template",

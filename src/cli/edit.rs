@@ -37,11 +37,11 @@ pub struct RenderEditCmd {
     #[arg(long, default_value = "rgb")]
     passes: String,
     /// Sample spacing in voxels of each field's grid (smaller: slower, finer).
-    #[arg(long, default_value_t = RenderOptions::default().step)]
+    #[arg(long, default_value_t = RenderEditOptions::default().render.step)]
     step: f32,
     /// Samples less opaque than this are skipped (and cells that cannot reach it are never
     /// evaluated).
-    #[arg(long, default_value_t = RenderOptions::default().alpha_thresh)]
+    #[arg(long, default_value_t = RenderEditOptions::default().render.alpha_thresh)]
     alpha_thresh: f32,
     /// Frames per second of --views and --orbit renders (a path file has its own).
     #[arg(long, default_value_t = RenderEditOptions::default().fps)]
@@ -80,7 +80,7 @@ impl RenderEditCmd {
             render: RenderOptions {
                 step: self.step,
                 alpha_thresh: self.alpha_thresh,
-                ..Default::default()
+                ..RenderEditOptions::default().render
             },
             fps: self.fps,
             video: !self.no_video,

@@ -8,8 +8,10 @@
 //! surface, texture and all, carried by the similarity). Over a background model the scene keeps
 //! its floor, backdrop and every object the edit does not name (the background field is the
 //! scene without the edit's objects); over a plain colour only the edit's objects are drawn.
-//! A recolour applies the edit's recolour function to each sample's radiance, as the renderer
-//! applies it to the field's radiance.
+//! A radiance field carries the light it was captured under: moved and turned, an object keeps
+//! its shading (the truth shades it with the light turned along with it, as in its captured
+//! pose), and a recolour applies the edit's recolour function to each sample's radiance, as the
+//! renderer applies it to the field's radiance.
 
 use super::geometry::{Object, World};
 use super::render::{pixel_ray, AMBIENT, DIFFUSE, SKY, SS};
@@ -42,6 +44,9 @@ pub struct EditTruth {
     /// Per object of `world`: its object-index value (0: an object of the background).
     index: Vec<u8>,
     recolour: Vec<Option<PreparedRecolour>>,
+    /// Per object of `world`: the direction towards the light in its shading (the world's
+    /// light turned by the object's edit).
+    light: Vec<DVec3>,
     /// What rays that hit nothing show.
     background: DVec3,
     metres_per_unit: f64,
@@ -52,7 +57,7 @@ impl EditTruth {
     pub fn new(edit: &LoadedEdit, seed: u64) -> Result<EditTruth> {
         let demo = World::demo();
         let mut named = vec![false; demo.objects.len()];
-        let mut placed: Vec<(Object, u8, Option<PreparedRecolour>)> = Vec::new();
+        let mut placed: Vec<(Object, u8, Option<PreparedRecolour>, DVec3)> = Vec::new();
         for o in &edit.objects {
             let k = demo_object_of(&demo, &o.name).ok_or_else(|| {
                 Error::format(
@@ -74,29 +79,30 @@ impl EditTruth {
             obj.place = obj
                 .place
                 .then(s.scale, DMat3::from_quat(s.rotation), s.translation);
-            placed.push((
-                obj,
-                (o.index + 1).min(255) as u8,
-                o.recolour.map(|r| r.prepare()),
-            ));
+            let light = s.rotation * demo.light;
+            let index = (o.index + 1).min(255) as u8;
+            placed.push((obj, index, o.recolour.map(|r| r.prepare()), light));
         }
         let scenery = matches!(edit.background, LoadedBackground::Field(_));
         let mut objects = Vec::new();
         let mut index = Vec::new();
         let mut recolour = Vec::new();
+        let mut light = Vec::new();
         if scenery {
             for (k, obj) in demo.objects.iter().enumerate() {
                 if !named[k] {
                     objects.push(obj.clone());
                     index.push(0);
                     recolour.push(None);
+                    light.push(demo.light);
                 }
             }
         }
-        for (obj, i, r) in placed {
+        for (obj, i, r, l) in placed {
             objects.push(obj);
             index.push(i);
             recolour.push(r);
+            light.push(l);
         }
         let background = match edit.background {
             LoadedBackground::Color(c) => DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64),
@@ -111,6 +117,7 @@ impl EditTruth {
             tex: Textures::new(seed),
             index,
             recolour,
+            light,
             background,
             metres_per_unit: edit.file.metres_per_unit,
         })
@@ -132,7 +139,8 @@ impl EditTruth {
                 let c = match &hit {
                     Some(h) => {
                         hits += 1;
-                        let shade = AMBIENT + DIFFUSE * h.n.dot(self.world.light).max(0.0);
+                        let light = self.light.get(h.id as usize).unwrap_or(&self.world.light);
+                        let shade = AMBIENT + DIFFUSE * h.n.dot(*light).max(0.0);
                         let c = self.tex.albedo(&self.world, h) * shade;
                         match self.recolour.get(h.id as usize).copied().flatten() {
                             Some(r) => {

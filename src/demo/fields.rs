@@ -140,3 +140,60 @@ pub fn write_background_field(
     save(out, &fitted.trainer.parts(IDENTITY, notes))?;
     Ok(fitted.report)
 }
+
+/// The files of [`ensure_edit_fields`].
+#[derive(Clone, Debug)]
+pub struct EditFields {
+    pub scene: std::path::PathBuf,
+    /// The scene without the mug and the torus.
+    pub background: std::path::PathBuf,
+    pub mug: std::path::PathBuf,
+    pub torus: std::path::PathBuf,
+}
+
+/// Step budgets of [`ensure_edit_fields`]: the background's 3000 steps take ~10 CPU-minutes
+/// and ~4 GiB at the 512 MiB grid budget (it overshoots on the demo's large floor).
+pub const EDIT_BACKGROUND_STEPS: usize = 3000;
+pub const EDIT_OBJECT_STEPS: usize = 2000;
+
+/// The demo scene and the fields its edit tests and benchmarks use, in `dir`: made when missing
+/// (the default demo scene; the mug and the torus from their true masks; the background
+/// without them), reused when present. `log` hears what was trained.
+pub fn ensure_edit_fields(dir: &Path, log: &mut dyn FnMut(String)) -> Result<EditFields> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let f = EditFields {
+        scene: dir.join("demo"),
+        background: dir.join("background.objf"),
+        mug: dir.join("mug.objf"),
+        torus: dir.join("torus.objf"),
+    };
+    if !f.scene.join("truth/objects.json").is_file() {
+        super::write_demo_scene(&super::DemoOptions::default(), &f.scene)?;
+    }
+    for (name, out) in [("mug", &f.mug), ("torus", &f.torus)] {
+        if !out.is_file() {
+            let opts = DemoFieldOptions {
+                steps: EDIT_OBJECT_STEPS,
+                ..Default::default()
+            };
+            let r = write_object_field(&f.scene, name, &opts, out)?;
+            log(format!(
+                "{name}: {} steps in {:.0} s, grid {:?}",
+                r.run.steps, r.run.seconds, r.dims
+            ));
+        }
+    }
+    if !f.background.is_file() {
+        let opts = DemoFieldOptions {
+            steps: EDIT_BACKGROUND_STEPS,
+            memory_mb: 512,
+            ..Default::default()
+        };
+        let r = write_background_field(&f.scene, &["mug", "torus"], &opts, &f.background)?;
+        log(format!(
+            "background without the mug and the torus: {} steps in {:.0} s, grid {:?}",
+            r.run.steps, r.run.seconds, r.dims
+        ));
+    }
+    Ok(f)
+}

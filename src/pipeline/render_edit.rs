@@ -51,7 +51,14 @@ impl Default for RenderEditOptions {
             path: PathSource::Orbit(24),
             size: None,
             passes: Passes::default(),
-            render: RenderOptions::default(),
+            // A sample per voxel, and samples under 0.3% opacity skipped (their cells never
+            // evaluated): on the demo edits the same PSNR as half-voxel steps at 1e-4, in about
+            // 40% of the time (examples/results/render_edit.json).
+            render: RenderOptions {
+                step: 1.0,
+                alpha_thresh: 3e-3,
+                ..RenderOptions::default()
+            },
             fps: 24.0,
             video: true,
         }
