@@ -52,6 +52,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
                 time_budget: Some(secs),
                 plateau_db: None,
                 window: 100,
+                ..Default::default()
             },
             ..Default::default()
         },
@@ -124,13 +125,14 @@ fn main() -> objnerf::Result<()> {
     }
     let cpu0 = cpu_seconds();
     let t1 = std::time::Instant::now();
-    let (mut trainer, rays, report) = field::prepare(&views, &setup, cfg)?;
+    let (mut trainer, rays, report) = field::prepare(&views, &[], &setup, cfg)?;
     let prep_s = t1.elapsed().as_secs_f64();
     eprintln!("{}", serde_json::to_string(&report).unwrap_or_default());
     let stop = StopRule {
         time_budget: Some(secs),
         plateau_db: None,
         window: 100,
+        ..Default::default()
     };
     let mut next_log = 0.0;
     let summary = field::run(&mut trainer, &views, &rays, &stop, |s| {

@@ -40,6 +40,7 @@ fn main() -> objnerf::Result<()> {
         .filter(|(i, _)| is_held_out(*i, 6))
         .map(|(_, im)| im.name.clone())
         .collect();
+    let d = SceneFitOptions::default();
     let mut opts = SceneFitOptions {
         space: env("SF_SPACE").unwrap_or_default(),
         fit: FitOptions {
@@ -48,12 +49,12 @@ fn main() -> objnerf::Result<()> {
             steps: env("SF_STEPS").unwrap_or(20_000),
             setup,
             exclude_views: held.clone(),
-            depth: env("SF_DEPTH").unwrap_or(objnerf::field::DepthMode::None),
+            depth: env("SF_DEPTH").unwrap_or(d.fit.depth),
             ..Default::default()
         },
-        prune_after: env("SF_PRUNE_AFTER").unwrap_or(0.1),
-        carve_weight: env("SF_CARVE").unwrap_or(1e-3),
-        distortion_weight: env("SF_DIST").unwrap_or(0.0),
+        prune_after: env("SF_PRUNE_AFTER").unwrap_or(d.prune_after),
+        carve_weight: env("SF_CARVE").unwrap_or(d.carve_weight),
+        distortion_weight: env("SF_DIST").unwrap_or(d.distortion_weight),
         ..Default::default()
     };
     // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").

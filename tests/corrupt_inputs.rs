@@ -483,6 +483,7 @@ fn setup_case(reader: &str, tmp: &Path, bytes: &[u8]) -> Case {
             std::fs::write(&path, camera_path_seed()).unwrap();
             let file = if reader == "edit_json" { &edit } else { &path };
             std::fs::write(file, bytes).unwrap();
+            let name = file.file_name().unwrap().to_string_lossy().to_string();
             Case {
                 args: vec![
                     "render-edit".into(),
@@ -492,7 +493,7 @@ fn setup_case(reader: &str, tmp: &Path, bytes: &[u8]) -> Case {
                     "--out".into(),
                     tmp.join("out"),
                 ],
-                file: file.file_name().unwrap().to_string_lossy().to_string(),
+                file: name,
             }
         }
         other => panic!("tests/data/corrupt/{other}: no reader of that name"),

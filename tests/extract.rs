@@ -7,21 +7,8 @@ use objnerf::demo::{read_truth, write_demo_scene, DemoOptions};
 use objnerf::eval::chamfer::chamfer_distance;
 use objnerf::field::{io as model_io, Field, FieldConfig};
 use objnerf::mesh::io::read_ply;
-use objnerf::models::ModelsDir;
 use std::path::Path;
 use std::process::Command;
-
-fn sam_installed() -> bool {
-    let ok = ModelsDir::from_env()
-        .map(|d| d.require_sam().is_ok() && d.require_library().is_ok())
-        .unwrap_or(false);
-    if !ok {
-        eprintln!(
-            "SKIP: SAM models are not installed (scripts/setup runs `objnerf models install`)"
-        );
-    }
-    ok
-}
 
 /// (mesh name, vertices, triangles) of every mesh in a .glb, read with `gltf::import`.
 fn glb_counts(path: &Path) -> Vec<(String, usize, usize)> {
@@ -41,7 +28,7 @@ fn glb_counts(path: &Path) -> Vec<(String, usize, usize)> {
 
 #[test]
 fn extract_every_demo_object_close_to_its_true_mesh() {
-    if !sam_installed() {
+    if !common::sam_installed() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -275,7 +262,7 @@ fn mesh_command_errors_are_clear() {
 #[test]
 fn a_capture_with_images_in_sub_folders_extracts() {
     use objnerf::scene::formats::colmap::{write_model, ModelFormat};
-    if !sam_installed() {
+    if !common::sam_installed() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

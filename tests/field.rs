@@ -28,7 +28,7 @@ fn small_cfg(steps: usize) -> TrainConfig {
 }
 
 fn train_steps(views: &[View], cfg: TrainConfig, steps: usize) -> field::Trainer {
-    let (mut t, rays, _) = field::prepare(views, &SetupConfig::default(), cfg).unwrap();
+    let (mut t, rays, _) = field::prepare(views, &[], &SetupConfig::default(), cfg).unwrap();
     for _ in 0..steps {
         t.train_step(views, &rays);
     }
@@ -369,11 +369,12 @@ fn lego_200_reaches_28_db_within_5_minutes() {
         return;
     };
     let (mut t, rays, setup) =
-        field::prepare(&views, &SetupConfig::default(), TrainConfig::default()).unwrap();
+        field::prepare(&views, &[], &SetupConfig::default(), TrainConfig::default()).unwrap();
     let stop = field::StopRule {
         time_budget: Some(300.0),
         plateau_db: None,
         window: 500,
+        ..Default::default()
     };
     let run = field::run(&mut t, &views, &rays, &stop, |_| {});
     let ev = field::eval::evaluate(&t.field, &field::RenderOptions::default(), &test);

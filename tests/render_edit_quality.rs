@@ -13,7 +13,7 @@ mod common;
 
 use common::objnerf_bin;
 use glam::DVec3;
-use objnerf::demo::fields::{ensure_edit_fields, EditFields};
+use objnerf::pipeline::demo_edit::{ensure_edit_fields, EditFields};
 use objnerf::scene::camera_path::{CameraPath, Orbit, PathFrame};
 use serde_json::json;
 use std::path::{Path, PathBuf};

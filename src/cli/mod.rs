@@ -2,12 +2,14 @@
 //! command parses its arguments into the library's typed options, calls the library, and prints
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
+mod camera_path;
 mod edit;
 mod export;
 mod field;
 mod mesh;
 mod models;
 mod progress;
+mod remove;
 mod run;
 mod scene;
 mod segment;
@@ -58,6 +60,9 @@ enum Command {
     /// The main job on the built-in demo scene: render it, extract one object from one click
     /// (segment, train, mesh, turntable) and score each stage against the scene's exact truth.
     Demo(run::DemoCmd),
+    /// Take objects out of a scene: a field of the scene without them (trained with the reverse
+    /// alpha, the part of the hole no view saw filled), renders of every view, a contact sheet.
+    Remove(remove::RemoveCmd),
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene(scene::DemoSceneCmd),
     /// Render an edit (docs/edit-format.md: a background and objects moved, turned, scaled,
@@ -71,6 +76,9 @@ enum Command {
         #[command(subcommand)]
         to: export::ExportCmd,
     },
+    /// Read a nerfstudio camera_path.json (data frame, or the viewer's with the run's
+    /// dataparser_transforms.json): print its cameras; --out writes it in the data frame.
+    CameraPath(camera_path::CameraPathCmd),
 }
 
 /// Parse the command line, run the command, print an error and exit 1 if it failed.
@@ -102,9 +110,11 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::Extract(cmd) => cmd.run(sub.expect("extract has matches")),
         Command::Demo(cmd) => cmd.run(),
         Command::DemoScene(cmd) => cmd.run(),
+        Command::Remove(cmd) => cmd.run(),
         Command::RenderEdit(cmd) => cmd.run(),
         Command::EditTemplate(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
+        Command::CameraPath(cmd) => cmd.run(),
     }
 }
 

@@ -4,7 +4,7 @@ use super::print_json;
 use super::progress::Bars;
 use clap::Args;
 use objnerf::demo::edit::write_edit_truth;
-use objnerf::demo::{parse_size, write_demo_scene, DemoOptions};
+use objnerf::demo::{parse_size, write_demo_scene, DemoLayout, DemoOptions};
 use objnerf::edit::{load_edit, EditFile};
 use objnerf::scene::camera_path::{CameraPath, PathFrame};
 use objnerf::scene::info::scene_info;
@@ -114,9 +114,13 @@ pub struct DemoSceneCmd {
     out: PathBuf,
     #[arg(long, default_value_t = DemoOptions::default().seed)]
     seed: u64,
-    /// Number of views on the camera ring.
+    /// Number of views.
     #[arg(long, default_value_t = DemoOptions::default().views)]
     views: usize,
+    /// Where the cameras stand: ring (around the scene) or forward (a grid in front of it, all
+    /// facing it, as LLFF captures; also writes poses_bounds.npy).
+    #[arg(long, default_value_t = DemoOptions::default().layout)]
+    layout: DemoLayout,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value_t = default_size())]
     size: String,
@@ -176,6 +180,7 @@ impl DemoSceneCmd {
             noise_px: self.noise,
             outlier_fraction: self.outliers,
             overwrite: self.overwrite,
+            layout: self.layout,
         };
         let s = write_demo_scene(&opts, &self.out)?;
         println!(

@@ -83,7 +83,8 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
     };
     let (train, _) = split_every(views, run.every);
     let (_, test) = split_every(scoring, run.every);
-    let (mut trainer, rays, setup) = prepare(&train, &run.setup, run.train.clone())?;
+    let points = crate::field::bounds::points_in_masks(&scene, &train, run.downscale);
+    let (mut trainer, rays, setup) = prepare(&train, &points, &run.setup, run.train.clone())?;
     let summary = crate::field::session::run(&mut trainer, &train, &rays, &run.stop, |_| {});
     let opt = RenderOptions::default();
     let visible = |v: &View| {

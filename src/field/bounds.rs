@@ -86,6 +86,7 @@ pub fn visual_hull(views: &[View], lo: Vec3, hi: Vec3, dims: [usize; 3]) -> Vec<
 
 /// The object's box from the visual hull: a coarse pass over the cube that holds the cameras,
 /// then a finer pass over what it found, padded by `pad` (a fraction of the size) on each side.
+/// Only right when the cameras surround the object; [`object_box`] starts from its points.
 pub fn hull_box(views: &[View], pad: f32) -> Result<(Vec3, Vec3)> {
     let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
     for v in views {
@@ -94,7 +95,14 @@ pub fn hull_box(views: &[View], pad: f32) -> Result<(Vec3, Vec3)> {
     }
     let c = 0.5 * (lo + hi);
     let r = (hi - lo).max_element().max(1e-3) * 0.5;
-    let (mut lo, mut hi) = (c - Vec3::splat(r), c + Vec3::splat(r));
+    let (lo, hi) = hull_within(views, c - Vec3::splat(r), c + Vec3::splat(r))?;
+    let e = (hi - lo) * pad;
+    Ok((lo - e, hi + e))
+}
+
+/// The visual hull's extent inside the search box `lo..hi`: a pass at 96^3 cells, then one at
+/// 128^3 over what it found.
+fn hull_within(views: &[View], mut lo: Vec3, mut hi: Vec3) -> Result<(Vec3, Vec3)> {
     for res in [96usize, 128] {
         let dims = [res; 3];
         let keep = visual_hull(views, lo, hi, dims);
@@ -119,8 +127,120 @@ pub fn hull_box(views: &[View], pad: f32) -> Result<(Vec3, Vec3)> {
         lo = a - cell;
         hi = b + cell;
     }
+    Ok((lo, hi))
+}
+
+/// Fewest object points for the box to start from them (fewer: the cameras' cube).
+pub const MIN_BOX_POINTS: usize = 8;
+/// The points' box is their 2nd-98th percentiles per axis (robust to points that leaked in at a
+/// mask's edge)...
+const POINT_QUANTILE: f64 = 0.02;
+/// ... grown by this fraction of its size per side to search the visual hull in (the
+/// percentiles cut off thin parts: a spire, a handle, a plant's top), once more where the hull
+/// reaches the search box's side.
+const SEARCH_GROW: f32 = 0.5;
+
+/// The object's box: from its sparse points (what the segmentation collected: the paper's
+/// bounding box, robust percentiles), grown and cut to the masks' visual hull, so it holds the
+/// object in any capture layout (cameras around it, facing it, or a facade). Without enough
+/// points, the hull over the cameras' cube ([`hull_box`]). Returns the box padded by `pad`, and
+/// which evidence set it.
+pub fn object_box(views: &[View], points: &[Vec3], pad: f32) -> Result<(Vec3, Vec3, String)> {
+    if points.len() < MIN_BOX_POINTS {
+        let (lo, hi) = hull_box(views, pad)?;
+        return Ok((
+            lo,
+            hi,
+            format!(
+                "box from the masks' visual hull over the cameras' cube ({} object points, fewer than {MIN_BOX_POINTS})",
+                points.len()
+            ),
+        ));
+    }
+    let q = |a: usize, f: f64| {
+        crate::util::stats::quantile(points.iter().map(|p| p[a] as f64).collect(), f).unwrap_or(0.0)
+            as f32
+    };
+    let plo = Vec3::new(
+        q(0, POINT_QUANTILE),
+        q(1, POINT_QUANTILE),
+        q(2, POINT_QUANTILE),
+    );
+    let phi = Vec3::new(
+        q(0, 1.0 - POINT_QUANTILE),
+        q(1, 1.0 - POINT_QUANTILE),
+        q(2, 1.0 - POINT_QUANTILE),
+    );
+    let size =
+        (phi - plo).max(Vec3::splat((phi - plo).max_element() * 0.05).max(Vec3::splat(1e-4)));
+    let (mut slo, mut shi) = (plo - size * SEARCH_GROW, phi + size * SEARCH_GROW);
+    let (mut lo, mut hi) = hull_within(views, slo, shi)?;
+    // Where the hull reaches a side of the search box, the object may go on: search once more
+    // with that side moved out.
+    let near = |a: f32, b: f32| (a - b).abs() <= 0.02 * size.max_element();
+    let mut grown = Vec::new();
+    for a in 0..3 {
+        if near(lo[a], slo[a]) {
+            slo[a] -= size[a] * SEARCH_GROW;
+            grown.push(format!("-{}", ["x", "y", "z"][a]));
+        }
+        if near(hi[a], shi[a]) {
+            shi[a] += size[a] * SEARCH_GROW;
+            grown.push(format!("+{}", ["x", "y", "z"][a]));
+        }
+    }
+    if !grown.is_empty() {
+        (lo, hi) = hull_within(views, slo, shi)?;
+    }
     let e = (hi - lo) * pad;
-    Ok((lo - e, hi + e))
+    let why = format!(
+        "box from {} object points (2-98%: {:.3} x {:.3} x {:.3}), searched {:.0}% wider{} and cut to the masks' visual hull: {:.3} x {:.3} x {:.3}",
+        points.len(),
+        phi.x - plo.x,
+        phi.y - plo.y,
+        phi.z - plo.z,
+        100.0 * SEARCH_GROW,
+        if grown.is_empty() {
+            String::new()
+        } else {
+            format!(" (then wider towards {})", grown.join(", "))
+        },
+        hi.x - lo.x,
+        hi.y - lo.y,
+        hi.z - lo.z
+    );
+    Ok((lo - e, hi + e, why))
+}
+
+/// The scene's sparse points that belong to the object: seen by at least two of `views` (the
+/// training views, masks as alpha, downscaled by `factor`), and inside the mask in at least two
+/// thirds of them (the segmentation's own point set, recovered from its masks).
+pub fn points_in_masks(scene: &crate::scene::Scene, views: &[View], factor: u32) -> Vec<Vec3> {
+    let index: std::collections::HashMap<&str, &View> =
+        views.iter().map(|v| (v.name.as_str(), v)).collect();
+    let f = factor.max(1) as f64;
+    scene
+        .points
+        .iter()
+        .filter_map(|p| {
+            let (mut seen, mut inside) = (0usize, 0usize);
+            for o in &p.track {
+                let im = &scene.images[o.image];
+                let Some(v) = index.get(im.name.as_str()) else {
+                    continue;
+                };
+                let xy = im.features[o.feature].xy / f;
+                let (x, y) = (xy.x as u32, xy.y as u32);
+                if x >= v.width || y >= v.height {
+                    continue;
+                }
+                seen += 1;
+                inside += (v.rgba[(y * v.width + x) as usize][3]
+                    > crate::util::mask::MASK_THRESHOLD) as usize;
+            }
+            (seen >= 2 && 3 * inside >= 2 * seen).then(|| p.xyz.as_vec3())
+        })
+        .collect()
 }
 
 /// The world length one pixel covers at the box's centre (median over the views of distance /

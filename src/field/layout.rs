@@ -91,8 +91,40 @@ pub struct SpaceSetup {
     /// The world length one pixel covers near the centre of interest, in space units: the voxel
     /// size at one voxel per pixel.
     pub pixel_footprint: f32,
+    /// World distance from each camera within which the grid holds nothing (0: none): what a
+    /// single camera alone sees up close is where a field grows floaters that explain its own
+    /// pixels. DVGO's `near_clip` for 360-degree scenes.
+    pub near_clip: f32,
     pub layout: Layout,
     pub why: String,
+}
+
+/// The scene starts this fraction of the way to the nearest surface any view sees (the 5th
+/// percentile of each view's tracked points' depths, least over the views).
+pub const NEAR_CLIP_FRACTION: f64 = 0.5;
+
+/// World distance from the cameras that holds no scene ([`SpaceSetup::near_clip`]): 0 without
+/// tracked points.
+fn near_clip(scene: &Scene) -> f32 {
+    let near = scene
+        .images
+        .iter()
+        .filter_map(|im| {
+            let depths: Vec<f64> = im
+                .features
+                .iter()
+                .filter_map(|f| f.point)
+                .map(|p| im.pose.world_to_camera(scene.points[p].xyz).z)
+                .filter(|z| *z > 0.0)
+                .collect();
+            quantile(depths, 0.05)
+        })
+        .fold(f64::MAX, f64::min);
+    if near == f64::MAX {
+        0.0
+    } else {
+        (NEAR_CLIP_FRACTION * near) as f32
+    }
 }
 
 /// Measure the layout of `scene`'s cameras and points.
@@ -241,6 +273,7 @@ fn box_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> Result
         box_min: lo.as_vec3(),
         box_max: hi.as_vec3(),
         pixel_footprint: footprint_at(scene, focus, downscale) as f32,
+        near_clip: near_clip(scene),
         why: format!(
             "{reason}; box {:.2} x {:.2} x {:.2} from the sparse points and cameras",
             hi.x - lo.x,
@@ -264,6 +297,7 @@ fn unbounded_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> 
         box_min: Vec3::splat(-2.0),
         box_max: Vec3::splat(2.0),
         pixel_footprint: foot as f32,
+        near_clip: near_clip(scene),
         why: format!(
             "{reason}; contraction about the cameras' focus ({:.2}, {:.2}, {:.2}), inner radius {radius:.2} (1.1x the farthest camera)",
             focus.x, focus.y, focus.z
@@ -344,6 +378,8 @@ fn forward_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> Re
         box_min: lo,
         box_max: hi,
         pixel_footprint: voxel_xy,
+        // The NDC grid starts at the near plane, in front of every camera.
+        near_clip: 0.0,
         why: format!(
             "{reason}; NDC of the mean camera, near plane {near:.3} (the nearest points), depth axis sampled in {NDC_DEPTH_CELLS} cells of disparity"
         ),

@@ -44,6 +44,7 @@ pub mod eval;
 pub mod fit;
 pub mod grid;
 pub mod holdout;
+pub mod hole;
 pub mod io;
 pub mod layout;
 pub mod model;
@@ -55,7 +56,7 @@ pub mod train;
 pub mod view;
 
 pub use fit::{
-    fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind, FitOptions, Fitted,
+    fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind, FitOptions, Fitted, SceneFit,
     SceneFitOptions, TrainReport,
 };
 pub use layout::SpaceChoice;

@@ -2,7 +2,7 @@
 //! memory budget) → carved occupancy → rays pruned to the box → a [`Trainer`] run until the step
 //! count, a time budget or a PSNR plateau.
 
-use super::bounds::{fit_budget, hull_box, pixel_footprint, visual_hull};
+use super::bounds::{fit_budget, object_box, pixel_footprint, visual_hull};
 use super::layout::SpaceSetup;
 use super::model::{Field, FieldConfig};
 use super::rays::RaySet;
@@ -63,15 +63,18 @@ pub struct SetupReport {
     pub first_stage_cells: usize,
 }
 
-/// Build the trainer for an object's `views`: the box from the masks' visual hull, occupancy
-/// carved by it, rays that miss the box pruned.
+/// Build the trainer for an object's `views`: the box from its sparse `points` cut to the
+/// masks' visual hull ([`object_box`]), occupancy carved by the hull, rays that miss the box
+/// pruned.
 pub fn prepare(
     views: &[View],
+    points: &[Vec3],
     setup: &SetupConfig,
     cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
-    let (lo, hi) = hull_box(views, setup.pad)?;
+    let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
+    let why = format!("{box_why}; {why}");
     let plan = GridPlan::new(lo, hi, footprint, why, setup, &cfg);
     let mut field = plan.field(setup, Space::Box, &cfg);
     let dims0 = field.grid.dims;
@@ -113,6 +116,8 @@ pub fn prepare_scene(
         &cfg,
     );
     let mut field = plan.field(setup, space.space.clone(), &cfg);
+    clear_near_cameras(&mut field, views, space.near_clip);
+    field.release_free_bricks();
     seed_surfaces(&mut field, seeds);
     let rays = RaySet::build(views, &field);
     if rays.rays.is_empty() {
@@ -122,6 +127,37 @@ pub fn prepare_scene(
     }
     let report = plan.report(&field, &rays, field.num_cells());
     Ok((plan.trainer(field, setup, cfg), rays, report))
+}
+
+/// Free the cells within `radius` (world units) of any view's camera, where nothing of the scene
+/// stands (see [`SpaceSetup::near_clip`]). Box and contracted spaces (cameras lie in the
+/// contraction's linear inner ball); an NDC grid starts in front of the cameras anyway.
+fn clear_near_cameras(field: &mut Field, views: &[View], radius: f32) {
+    let scale = match &field.space {
+        Space::Box => 1.0,
+        Space::Unbounded { radius: r, .. } => 1.0 / r,
+        Space::Ndc(_) => return,
+    };
+    let r = radius * scale / field.voxel;
+    if r <= 0.0 {
+        return;
+    }
+    let cells = field.grid.dims.map(|d| d - 1);
+    for v in views {
+        let g = field.to_grid(v.center());
+        let lo = [0, 1, 2].map(|a| (g[a] - r - 1.0).floor().max(0.0) as usize);
+        let hi = [0, 1, 2].map(|a| ((g[a] + r + 1.0).ceil().max(0.0) as usize).min(cells[a]));
+        for z in lo[2]..hi[2] {
+            for y in lo[1]..hi[1] {
+                for x in lo[0]..hi[0] {
+                    let c = glam::Vec3::new(x as f32, y as f32, z as f32) + 0.5;
+                    if (c - g).length() <= r {
+                        field.set_occupied([x, y, z], false);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Raw density that makes one finest voxel this opaque where a sparse point was seen.
@@ -271,14 +307,44 @@ impl GridPlan {
 }
 
 /// When to stop.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct StopRule {
-    /// Seconds of training.
+    /// Seconds of training (the schedule follows the time spent when it is further along than
+    /// the steps).
     pub time_budget: Option<f64>,
     /// Stop when the batch PSNR (averaged over `window` steps) rose by less than this many dB
     /// over the last window, once the grid is at its finest.
     pub plateau_db: Option<f32>,
     pub window: usize,
+    /// End this run (one phase of a longer schedule) at this step or after this many seconds
+    /// of the budget, without changing the schedule.
+    pub until_step: Option<usize>,
+    pub until_seconds: Option<f64>,
+    /// Seconds of the budget spent by earlier phases.
+    pub seconds_before: f64,
+}
+
+impl StopRule {
+    /// The rule of `objnerf train`: the budget, or a plateau at the finest grid.
+    pub fn for_budget(time_budget: Option<f64>) -> StopRule {
+        StopRule {
+            time_budget,
+            ..Default::default()
+        }
+    }
+}
+
+impl Default for StopRule {
+    fn default() -> Self {
+        StopRule {
+            time_budget: None,
+            plateau_db: Some(0.01),
+            window: 500,
+            until_step: None,
+            until_seconds: None,
+            seconds_before: 0.0,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Default, Serialize)]
@@ -306,9 +372,11 @@ pub fn run(
     let mut last_window: Option<f64> = None;
     let mut last = StepStats::default();
     let w = stop.window.max(1);
-    while trainer.step < trainer.cfg.steps {
+    let last_step = stop.until_step.unwrap_or(usize::MAX).min(trainer.cfg.steps);
+    let spent = || stop.seconds_before + start.elapsed().as_secs_f64();
+    while trainer.step < last_step {
         if let Some(b) = stop.time_budget {
-            trainer.time_frac = (start.elapsed().as_secs_f64() / b.max(1e-9)) as f32;
+            trainer.time_frac = (spent() / b.max(1e-9)) as f32;
         }
         last = trainer.train_step(views, rays);
         let secs = start.elapsed().as_secs_f64();
@@ -329,8 +397,12 @@ pub fn run(
             }
             last_window = at_finest.then_some(mean);
         }
-        if stop.time_budget.is_some_and(|b| secs >= b) {
+        if stop.time_budget.is_some_and(|b| spent() >= b) {
             stopped_by = "time budget".into();
+            break;
+        }
+        if stop.until_seconds.is_some_and(|b| spent() >= b) {
+            stopped_by = "phase time".into();
             break;
         }
     }

@@ -201,6 +201,30 @@ pub struct FinestStage {
     pub why: String,
 }
 
+/// `keep` (cells, x fastest, `cells` per axis) grown by one cell along each axis.
+fn dilate_cells(keep: &[bool], cells: [usize; 3]) -> Vec<bool> {
+    let mut out = keep.to_vec();
+    let strides = [1, cells[0], cells[0] * cells[1]];
+    for axis in 0..3 {
+        let src = out.clone();
+        let n = cells[axis];
+        let s = strides[axis];
+        for (i, k) in src.iter().enumerate() {
+            if !*k {
+                continue;
+            }
+            let c = (i / s) % n;
+            if c > 0 {
+                out[i - s] = true;
+            }
+            if c + 1 < n {
+                out[i + s] = true;
+            }
+        }
+    }
+    out
+}
+
 /// Stage dims: (final - 1) * scale + 1 per axis (final - 1 is a multiple of 4, so 1/2 and 1/4
 /// scales are exact and voxels stay cubic).
 pub fn stage_dims(final_dims: [usize; 3], scale: f32) -> [usize; 3] {
@@ -342,12 +366,15 @@ impl Trainer {
             })
             .collect();
         let mut keep = vec![false; f.num_cells().max(1)];
-        let cells = [dims[0] - 1, dims[1] - 1];
+        let cells = [dims[0] - 1, dims[1] - 1, dims[2] - 1];
         for b in seen.into_iter().flatten() {
             let b = b as usize;
             let (x, y, z) = (b % dims[0], (b / dims[0]) % dims[1], b / plane);
             keep[x + cells[0] * (y + cells[1] * z)] = true;
         }
+        // A view between the training views crosses a surface where no training ray quite did:
+        // keep one cell around every kept cell, or it sees through pinholes.
+        let keep = dilate_cells(&keep, cells);
         for c in self.field.occupied_cell_list() {
             if !keep[c[0] + cells[0] * (c[1] + cells[1] * c[2])] {
                 self.field.set_occupied(c, false);

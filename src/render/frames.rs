@@ -5,7 +5,7 @@
 //! them, so two folders compare file by file.
 
 use crate::error::{Error, Result};
-use crate::scene::io::{write_depth_exr, DepthMap};
+use crate::scene::io::{write_depth_exr_far, DepthMap};
 use crate::util::atomic::{save_image_atomic, write_bytes_atomic};
 use image::{GrayImage, RgbImage};
 use std::path::{Path, PathBuf};
@@ -78,7 +78,7 @@ pub fn write_frame(dir: &Path, k: usize, f: &FrameImages) -> Result<()> {
         save_image_atomic(&frame_file(dir, "alpha", k), &a.clone().into())?;
     }
     if let Some(d) = &f.depth {
-        write_depth_exr(&frame_file(dir, "depth", k), d)?;
+        write_depth_exr_far(&frame_file(dir, "depth", k), d)?;
     }
     if let Some(i) = &f.index {
         save_image_atomic(&frame_file(dir, "index", k), &i.clone().into())?;

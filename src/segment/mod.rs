@@ -9,7 +9,7 @@
 //!   [`distance`] (exact distance transforms).
 //! - [`sam_views`]: SAM ([`crate::sam`]) as the propagation's segmenter.
 //! - [`run`]: `objnerf segment` as a call (checks, propagation, outputs); [`output`]: masks,
-//!   point clouds, contact sheets; [`evaluate`]: scores against truth masks.
+//!   point clouds, contact sheets; [`saved`]: a saved run read back; [`evaluate`]: scores against truth masks.
 
 pub mod distance;
 pub mod evaluate;
@@ -19,6 +19,7 @@ pub mod propagate;
 pub mod regions;
 pub mod run;
 pub mod sam_views;
+pub mod saved;
 pub mod types;
 pub mod view_prompts;
 

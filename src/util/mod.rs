@@ -1,8 +1,9 @@
-//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks, memory,
+//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks, inpainting, memory,
 //! paths, progress reporting, a seeded random generator, order statistics.
 
 pub mod atomic;
 pub mod digest;
+pub mod inpaint;
 pub mod mask;
 pub mod mem;
 pub mod paths;

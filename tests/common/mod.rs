@@ -126,3 +126,16 @@ pub fn objnerf_ok(args: &[&str]) -> std::process::Output {
     );
     out
 }
+
+/// Whether SAM (models and ONNX Runtime) is installed; prints a SKIP line when not.
+pub fn sam_installed() -> bool {
+    let ok = objnerf::models::ModelsDir::from_env()
+        .map(|d| d.require_sam().is_ok() && d.require_library().is_ok())
+        .unwrap_or(false);
+    if !ok {
+        eprintln!(
+            "SKIP: SAM models are not installed (scripts/setup runs `objnerf models install`)"
+        );
+    }
+    ok
+}

@@ -1,0 +1,120 @@
+//! `objnerf remove`: objects taken out of a scene (a scene field trained with the reverse alpha).
+
+use super::progress::Bars;
+use clap::Args;
+use objnerf::field::{FitOptions, SceneFitOptions, SetupConfig, SpaceChoice};
+use objnerf::pipeline::{remove, RemoveOptions};
+use objnerf::{Result, Scene};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct RemoveCmd {
+    /// The scene (COLMAP model folder, transforms.json, ...) the segmentation was made on.
+    scene: PathBuf,
+    /// The `objnerf segment` output folder (or an extract run's `segment/`).
+    #[arg(long)]
+    segment: PathBuf,
+    /// An object to remove (as named in the segmentation); repeat for several.
+    #[arg(long = "object", required = true)]
+    objects: Vec<String>,
+    /// Output folder (created; must be empty unless --overwrite).
+    #[arg(long)]
+    out: PathBuf,
+    /// The field's space: auto (from the capture's layout), box, unbounded or forward.
+    #[arg(long, default_value_t = SpaceChoice::default())]
+    space: SpaceChoice,
+    /// Train on images downscaled by this factor (box filter).
+    #[arg(long, default_value_t = FitOptions::default().downscale)]
+    downscale: u32,
+    /// Seconds of training.
+    #[arg(long, default_value_t = RemoveOptions::default().field.fit.time_budget.unwrap_or(0.0))]
+    time_budget: f64,
+    /// Most optimisation steps (the learning-rate schedule spans them).
+    #[arg(long, default_value_t = FitOptions::default().steps)]
+    steps: usize,
+    /// Memory for the grid and optimiser state, MiB.
+    #[arg(long, default_value_t = SetupConfig::default().memory_budget >> 20)]
+    memory_mb: usize,
+    /// Grow the removed masks by this many pixels before they are left out.
+    #[arg(long, default_value_t = SceneFitOptions::default().dilate_px)]
+    dilate: u32,
+    /// Leave every N-th view out of training and score it (0: none).
+    #[arg(long, default_value_t = RemoveOptions::default().hold_out_every)]
+    hold_out_every: usize,
+    /// Leave the part of the hole no view saw unfilled.
+    #[arg(long)]
+    no_fill: bool,
+    #[arg(long, default_value_t = FitOptions::default().seed)]
+    seed: u64,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+impl RemoveCmd {
+    pub fn run(self) -> Result<()> {
+        let scene = Scene::load(&self.scene)?;
+        let defaults = RemoveOptions::default();
+        let mut field = defaults.field.clone();
+        field.space = self.space;
+        field.dilate_px = self.dilate;
+        field.fit.downscale = self.downscale;
+        field.fit.time_budget = (self.time_budget > 0.0).then_some(self.time_budget);
+        field.fit.steps = self.steps;
+        field.fit.seed = self.seed;
+        field.fit.setup.memory_budget = self.memory_mb << 20;
+        let opts = RemoveOptions {
+            objects: self.objects,
+            field,
+            hold_out_every: self.hold_out_every,
+            fill: !self.no_fill,
+            overwrite: self.overwrite,
+            ..defaults
+        };
+        let bars = Bars::default();
+        let r = remove(&scene, &self.segment, &opts, &self.out, &bars)?;
+        if let Some(s) = &r.train.setup {
+            println!("space: {} ({})", s.space.name(), s.why);
+            println!(
+                "grid: {:?} ({} vertices), {} MiB with optimiser state",
+                s.final_dims,
+                s.final_vertices,
+                r.train.memory_bytes >> 20
+            );
+        }
+        let run = &r.train.run;
+        println!(
+            "trained {} steps in {:.0} s (stopped by {}), batch PSNR {:.2} dB; {} hole pixels filled",
+            run.steps, r.seconds.train, run.stopped_by, run.final_psnr, r.filled_px
+        );
+        let (hole, unseen) = r
+            .holes
+            .iter()
+            .fold((0, 0), |a, h| (a.0 + h.hole_px, a.1 + h.unseen_px));
+        println!(
+            "hole: {hole} pixels over {} views, {:.1}% of them seen by no training view",
+            r.holes.iter().filter(|h| h.hole_px > 0).count(),
+            100.0 * unseen as f64 / hole.max(1) as f64
+        );
+        if let Some(s) = &r.scores {
+            println!(
+                "against the truth ({} views): PSNR {:.2} dB; inside the objects' masks (+{} px): {}",
+                s.views.len(),
+                s.psnr,
+                objnerf::pipeline::remove::SCORE_DILATE_PX,
+                s.hole_psnr
+                    .iter()
+                    .map(|(o, p)| format!("{o} {p:.2} dB"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        println!(
+            "wrote {} in {:.0} s (peak {} MiB)",
+            r.out.display(),
+            r.seconds.total,
+            r.peak_rss_mib
+        );
+        Ok(())
+    }
+}

@@ -1,0 +1,502 @@
+//! `objnerf remove`: objects taken out of a scene. A scene field is trained with the reverse
+//! alpha: every pixel is a colour target except under the removed objects' masks (from an
+//! `objnerf segment` run, dilated), so what they hid in one view is learnt from the views that
+//! saw it. Part of the hole no view saw (the ground under an object): after most of the training
+//! it is found ([`crate::field::hole`]), given smooth colour and depth targets from around it,
+//! and training goes on with them.
+//!
+//! Layout of the output folder (written under a temporary name, renamed into place at the end):
+//! ```text
+//! OUT/background.objf        the scene field without the objects
+//! OUT/renders/<view>.png     every view of the scene, rendered without them
+//! OUT/contact_sheet.png      before | after, for the views with the largest holes
+//! OUT/report.json            space, grid, time, memory, per-view hole and unseen fraction,
+//!                            and scores against the truth where the scene has it
+//! ```
+
+use crate::error::{Error, Result};
+use crate::field::eval::{psnr, Rendered};
+use crate::field::holdout::is_held_out;
+use crate::field::hole::{fill_unseen, find_unseen, render_all, ViewHole};
+use crate::field::session::StopRule;
+use crate::field::{model_notes, FieldKind, RenderOptions, SceneFit, SceneFitOptions, TrainReport};
+use crate::scene::io::read_mask;
+use crate::scene::Scene;
+use crate::segment::saved::SegmentRun;
+use crate::util::mask::{dilate, is_object};
+use crate::util::{mem::peak_rss_mib, AtomicDir, Progress};
+use image::{GrayImage, RgbImage};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Everything `remove` can be told.
+#[derive(Clone, Debug)]
+pub struct RemoveOptions {
+    /// The objects to take out (names in the segment run).
+    pub objects: Vec<String>,
+    /// The scene field's training (its `removed` masks and `exclude_views` are filled in here).
+    pub field: SceneFitOptions,
+    /// Hold out every n-th view from training, for scoring ([`is_held_out`]; 0: none).
+    pub hold_out_every: usize,
+    /// Fill the part of the hole no view saw (see the module notes).
+    pub fill: bool,
+    /// Fraction of the steps (and of the time budget) trained before the hole is filled.
+    pub fill_after: f32,
+    pub overwrite: bool,
+}
+
+impl Default for RemoveOptions {
+    fn default() -> Self {
+        let mut field = SceneFitOptions::default();
+        field.fit.time_budget = Some(300.0);
+        RemoveOptions {
+            objects: Vec::new(),
+            field,
+            hold_out_every: 0,
+            fill: true,
+            fill_after: 0.8,
+            overwrite: false,
+        }
+    }
+}
+
+/// Scores of the renders against the scene's truth (the demo scene's `truth/removed/`).
+#[derive(Clone, Debug, Serialize)]
+pub struct RemovalScores {
+    /// Where the truth was read.
+    pub truth: PathBuf,
+    /// Views scored: the held-out ones, else every view.
+    pub views: Vec<String>,
+    /// Mean over those views of the full-frame PSNR.
+    pub psnr: f64,
+    /// Per object: PSNR inside its true mask dilated by [`SCORE_DILATE_PX`] (pooled over the
+    /// views' pixels).
+    pub hole_psnr: Vec<(String, f64)>,
+}
+
+/// The true masks are grown by this many pixels for the hole score (the removal's rim counts).
+pub const SCORE_DILATE_PX: u32 = 4;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RemoveReport {
+    pub scene: PathBuf,
+    pub segment: PathBuf,
+    pub objects: Vec<String>,
+    pub out: PathBuf,
+    /// Views left out of training for scoring.
+    pub held_out: Vec<String>,
+    pub train: TrainReport,
+    /// Pixels given fill targets (0 without the fill).
+    pub filled_px: usize,
+    /// Per view (every view of the scene): the hole and the part of it no training view saw.
+    pub holes: Vec<ViewHole>,
+    pub scores: Option<RemovalScores>,
+    pub seconds: RemoveSeconds,
+    pub peak_rss_mib: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RemoveSeconds {
+    pub load: f64,
+    pub train: f64,
+    pub hole: f64,
+    pub render: f64,
+    pub total: f64,
+}
+
+/// Take `opts.objects` out of `scene` using the masks of the segment run in `segment_dir`;
+/// write `out`.
+pub fn remove(
+    scene: &Scene,
+    segment_dir: &Path,
+    opts: &RemoveOptions,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<RemoveReport> {
+    let t0 = Instant::now();
+    if opts.objects.is_empty() {
+        return Err(Error::invalid(
+            "name at least one object to remove (--object NAME)",
+        ));
+    }
+    let run = SegmentRun::open(segment_dir)?;
+    check_same_views(scene, &run)?;
+    let removed = removed_masks(scene, &run, &opts.objects)?;
+    let held_out: Vec<String> = scene
+        .images
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| is_held_out(*i, opts.hold_out_every))
+        .map(|(_, im)| im.name.clone())
+        .collect();
+    let mut field_opts = opts.field.clone();
+    field_opts.exclude_points = removed_points(scene, &removed);
+    field_opts.removed = Some(Arc::new(removed.clone()));
+    field_opts.fit.exclude_views = held_out.clone();
+    check_pixels_left(scene, &field_opts)?;
+    let dest = AtomicDir::new(out, opts.overwrite)?;
+    let root = dest.path().to_path_buf();
+    let mut fit = SceneFit::new(scene, &field_opts)?;
+    let t_load = t0.elapsed().as_secs_f64();
+
+    let (filled_px, t_hole) = train_and_fill(&mut fit, &field_opts, opts, progress);
+    let t_train = fit.seconds();
+    let fitted = fit.finish();
+    let notes = model_notes(FieldKind::Scene, scene, &field_opts.fit, &fitted.report);
+    let notes = with_removed(notes, &opts.objects, segment_dir);
+    crate::field::io::save(
+        &root.join("background.objf"),
+        &fitted.trainer.parts(crate::field::io::IDENTITY, notes),
+    )?;
+
+    // Every view (held-out ones too), rendered without the objects; the holes measured on them
+    // with the training views as the observers.
+    let t = Instant::now();
+    let mut all = crate::field::load_views(
+        scene,
+        &crate::field::MaskSource::Opaque,
+        field_opts.fit.downscale,
+    )?;
+    set_holes(&mut all, &removed, &field_opts);
+    // Training views first: they are the observers.
+    all.sort_by_key(|v| held_out.contains(&v.name));
+    let observers = all.len() - held_out.len();
+    progress.begin("render", all.len() as u64);
+    let renders = render_all(&fitted.trainer.field, &RenderOptions::default(), &all);
+    progress.end();
+    let holes = find_unseen(&all, &renders, observers).stats;
+    for (v, r) in all.iter().zip(&renders) {
+        crate::util::atomic::save_image_atomic(
+            &crate::scene::io::mask_file(&root.join("renders"), &v.name),
+            &image::DynamicImage::ImageRgb8(r.rgb8()),
+        )?;
+    }
+    write_contact_sheet(&all, &renders, &holes, &root.join("contact_sheet.png"))?;
+    let scores = score_against_truth(scene, &opts.objects, &all, &renders, &held_out)?;
+    let t_render = t.elapsed().as_secs_f64();
+
+    let report = RemoveReport {
+        scene: scene.source.clone(),
+        segment: segment_dir.to_path_buf(),
+        objects: opts.objects.clone(),
+        out: out.to_path_buf(),
+        held_out,
+        train: fitted.report,
+        filled_px,
+        holes,
+        scores,
+        seconds: RemoveSeconds {
+            load: t_load,
+            train: t_train,
+            hole: t_hole,
+            render: t_render,
+            total: t0.elapsed().as_secs_f64(),
+        },
+        peak_rss_mib: peak_rss_mib(),
+    };
+    let json = serde_json::to_string_pretty(&report).map_err(|e| Error::json(out, e))?;
+    crate::util::atomic::write_bytes_atomic(&root.join("report.json"), json.as_bytes())?;
+    dest.commit()?;
+    Ok(report)
+}
+
+/// Train; with the fill, stop at `fill_after` of the schedule, find the unseen hole, give it
+/// targets and train on. Returns the pixels filled and the seconds the hole took.
+fn train_and_fill(
+    fit: &mut SceneFit,
+    field_opts: &SceneFitOptions,
+    opts: &RemoveOptions,
+    progress: &dyn Progress,
+) -> (usize, f64) {
+    let budget = field_opts.fit.time_budget;
+    let steps = field_opts.fit.steps;
+    progress.begin("train background", steps as u64);
+    let mut report =
+        |s: &crate::field::train::StepStats| progress.advance(s.step as u64, s.detail());
+    if !opts.fill {
+        fit.train(&StopRule::for_budget(budget), &mut report);
+        progress.end();
+        return (0, 0.0);
+    }
+    let split = opts.fill_after.clamp(0.0, 1.0);
+    let first = StopRule {
+        until_step: Some((steps as f32 * split) as usize),
+        until_seconds: budget.map(|b| b * split as f64),
+        plateau_db: None,
+        ..StopRule::for_budget(budget)
+    };
+    fit.train(&first, &mut report);
+    let t = Instant::now();
+    let renders = render_all(&fit.trainer.field, &RenderOptions::default(), &fit.views);
+    let holes = find_unseen(&fit.views, &renders, fit.views.len());
+    let filled = fill_unseen(&mut fit.views, &holes, &renders);
+    drop(renders);
+    fit.rebuild_rays();
+    let t_hole = t.elapsed().as_secs_f64();
+    let rest = StopRule {
+        seconds_before: fit.seconds(),
+        ..StopRule::for_budget(budget)
+    };
+    fit.train(&rest, &mut report);
+    progress.end();
+    (filled, t_hole)
+}
+
+/// The segment run must be of this scene: the same image names.
+fn check_same_views(scene: &Scene, run: &SegmentRun) -> Result<()> {
+    let names = |s: &Scene| {
+        s.images
+            .iter()
+            .map(|im| im.name.clone())
+            .collect::<Vec<_>>()
+    };
+    if names(scene) != names(&run.scene) {
+        return Err(Error::format(
+            run.dir.join("report.json"),
+            format!(
+                "this segmentation was made on {} ({} views), not on {} ({} views): segment the scene you remove from",
+                run.scene.source.display(),
+                run.scene.images.len(),
+                scene.source.display(),
+                scene.images.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Per scene image, the union of the named objects' masks (None where none has a mask there).
+fn removed_masks(
+    scene: &Scene,
+    run: &SegmentRun,
+    objects: &[String],
+) -> Result<Vec<Option<GrayImage>>> {
+    for name in objects {
+        run.object(name)?;
+    }
+    scene
+        .images
+        .iter()
+        .map(|im| {
+            let cam = scene.camera_of(im);
+            let mut union: Option<GrayImage> = None;
+            for name in objects {
+                let path = run.mask_path(name, &im.name);
+                if !path.is_file() {
+                    let status = run.object(name)?.status.get(&im.name).cloned();
+                    if status.as_deref() == Some("absent") {
+                        continue;
+                    }
+                    return Err(Error::format(
+                        &path,
+                        format!("the mask of '{name}' in view {} is missing", im.name),
+                    ));
+                }
+                let m = read_mask(&path)?;
+                if m.dimensions() != (cam.width, cam.height) {
+                    return Err(Error::format(
+                        &path,
+                        format!(
+                            "mask is {}x{} but view {} is {}x{}",
+                            m.width(),
+                            m.height(),
+                            im.name,
+                            cam.width,
+                            cam.height
+                        ),
+                    ));
+                }
+                match &mut union {
+                    None => union = Some(m),
+                    Some(u) => {
+                        for (a, b) in u.pixels_mut().zip(m.pixels()) {
+                            a.0[0] = a.0[0].max(b.0[0]);
+                        }
+                    }
+                }
+            }
+            Ok(union)
+        })
+        .collect()
+}
+
+/// The sparse points of the removed objects (most of their observations inside the masks): the
+/// scene field must not be seeded with them.
+fn removed_points(
+    scene: &Scene,
+    removed: &[Option<GrayImage>],
+) -> std::collections::HashSet<usize> {
+    scene
+        .points
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| {
+            let inside = p
+                .track
+                .iter()
+                .filter(|o| {
+                    let Some(m) = removed.get(o.image).and_then(|m| m.as_ref()) else {
+                        return false;
+                    };
+                    let f = scene.images[o.image].features[o.feature].xy;
+                    let (x, y) = (f.x as u32, f.y as u32);
+                    x < m.width() && y < m.height() && is_object(m.get_pixel(x, y).0[0])
+                })
+                .count();
+            2 * inside > p.track.len()
+        })
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// A removal must leave every training view some pixels to learn from.
+fn check_pixels_left(scene: &Scene, opts: &SceneFitOptions) -> Result<()> {
+    let Some(removed) = &opts.removed else {
+        return Ok(());
+    };
+    for (im, m) in scene.images.iter().zip(removed.iter()) {
+        let Some(m) = m else { continue };
+        if opts.fit.exclude_views.contains(&im.name) {
+            continue;
+        }
+        let grown = dilate(m, opts.dilate_px);
+        if grown.pixels().all(|p| is_object(p.0[0])) {
+            return Err(Error::invalid(format!(
+                "view {}: the removed objects' masks (grown by {} px) cover every pixel, so nothing of the scene is left to learn there; leave the view out or remove less",
+                im.name, opts.dilate_px
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Mark each view's hole (the removed masks, dilated, at training resolution) in its loss mask.
+fn set_holes(
+    views: &mut [crate::field::View],
+    removed: &[Option<GrayImage>],
+    opts: &SceneFitOptions,
+) {
+    for (v, m) in views.iter_mut().zip(removed) {
+        if let Some(m) = m {
+            v.loss_mask = Some(crate::field::fit::loss_mask(
+                m,
+                opts.dilate_px,
+                opts.fit.downscale,
+                v.width,
+                v.height,
+            ));
+        }
+    }
+}
+
+fn with_removed(
+    mut notes: serde_json::Value,
+    objects: &[String],
+    segment: &Path,
+) -> serde_json::Value {
+    notes["removed"] = serde_json::json!(objects);
+    notes["segment"] = serde_json::json!(segment);
+    notes
+}
+
+/// Views shown in the contact sheet: those with the largest holes.
+const SHEET_VIEWS: usize = 6;
+
+/// Before (the photo) above after (the render), for the views with the largest holes.
+fn write_contact_sheet(
+    views: &[crate::field::View],
+    renders: &[Rendered],
+    holes: &[ViewHole],
+    path: &Path,
+) -> Result<()> {
+    let mut order: Vec<usize> = (0..views.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(holes[i].hole_px));
+    order.truncate(SHEET_VIEWS);
+    order.sort_unstable();
+    let (w, h) = (views[0].width, views[0].height);
+    let mut sheet =
+        RgbImage::from_pixel(w * order.len() as u32, 2 * h, image::Rgb([255, 255, 255]));
+    for (col, &i) in order.iter().enumerate() {
+        let (v, r) = (&views[i], renders[i].rgb8());
+        for y in 0..h.min(v.height) {
+            for x in 0..w.min(v.width) {
+                let p = v.rgba[(y * v.width + x) as usize];
+                sheet.put_pixel(col as u32 * w + x, y, image::Rgb([p[0], p[1], p[2]]));
+                sheet.put_pixel(col as u32 * w + x, h + y, *r.get_pixel(x, y));
+            }
+        }
+    }
+    crate::util::atomic::save_image_atomic(path, &image::DynamicImage::ImageRgb8(sheet))
+}
+
+/// Scores against the demo scene's truth of this removal, when the scene has one (at or above
+/// its path): full-frame PSNR and PSNR inside each object's dilated true mask, over the held-out
+/// views (every view when none is held out).
+fn score_against_truth(
+    scene: &Scene,
+    objects: &[String],
+    views: &[crate::field::View],
+    renders: &[Rendered],
+    held_out: &[String],
+) -> Result<Option<RemovalScores>> {
+    let names: Vec<&str> = objects.iter().map(String::as_str).collect();
+    let start = if scene.source.is_dir() {
+        scene.source.clone()
+    } else {
+        scene
+            .source
+            .parent()
+            .unwrap_or(Path::new("."))
+            .to_path_buf()
+    };
+    let Some(root) = start
+        .ancestors()
+        .find(|d| crate::demo::writer::removed_dir(d, &names).is_dir())
+    else {
+        return Ok(None);
+    };
+    let truth_dir = crate::demo::writer::removed_dir(root, &names);
+    let scored: Vec<usize> = (0..views.len())
+        .filter(|&i| held_out.is_empty() || held_out.contains(&views[i].name))
+        .collect();
+    let mut frame_psnr = Vec::new();
+    // Per object: the rendered and the true colours of the pixels inside its dilated mask.
+    type Pixels = Vec<[f32; 3]>;
+    let mut inside: Vec<(Pixels, Pixels)> = vec![(vec![], vec![]); objects.len()];
+    for &i in &scored {
+        let v = &views[i];
+        let truth = crate::scene::io::read_rgb(&crate::scene::io::mask_file(&truth_dir, &v.name))?;
+        if truth.dimensions() != (v.width, v.height) {
+            // Scores are at training resolution; a downscaled run is scored on binned truth.
+            return Ok(None);
+        }
+        let t: Vec<[f32; 3]> = truth
+            .pixels()
+            .map(|p| p.0.map(|c| c as f32 / 255.0))
+            .collect();
+        frame_psnr.push(psnr(&renders[i].rgb, &t));
+        for (k, obj) in objects.iter().enumerate() {
+            let mask_path =
+                crate::scene::io::mask_file(&root.join("truth/masks").join(obj), &v.name);
+            let m = dilate(&read_mask(&mask_path)?, SCORE_DILATE_PX);
+            for (p, q) in m.pixels().enumerate() {
+                if is_object(q.0[0]) {
+                    inside[k].0.push(renders[i].rgb[p]);
+                    inside[k].1.push(t[p]);
+                }
+            }
+        }
+    }
+    Ok(Some(RemovalScores {
+        truth: truth_dir,
+        views: scored.iter().map(|&i| views[i].name.clone()).collect(),
+        psnr: frame_psnr.iter().sum::<f64>() / frame_psnr.len().max(1) as f64,
+        hole_psnr: objects
+            .iter()
+            .zip(inside)
+            .map(|(o, (a, b))| (o.clone(), psnr(&a, &b)))
+            .collect(),
+    }))
+}

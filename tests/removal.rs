@@ -1,0 +1,494 @@
+//! Object removal and scene fields (issue 14): the space each capture layout gets, the demo's
+//! forward-facing layout and removal truth, `objnerf remove`'s errors; and (ignored, slow: see
+//! the README) removals, scene fields and a forward-facing extract scored against the truth.
+
+mod common;
+
+use objnerf::demo::{read_truth, write_demo_scene, DemoLayout, DemoOptions};
+use objnerf::field::layout::choose_space;
+use objnerf::field::SpaceChoice;
+use objnerf::Scene;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn demo(dir: &Path, layout: DemoLayout, views: usize) -> PathBuf {
+    let out = dir.join(format!("demo_{layout}"));
+    let opts = DemoOptions {
+        views,
+        layout,
+        ..Default::default()
+    };
+    write_demo_scene(&opts, &out).unwrap();
+    out
+}
+
+/// `--space auto` picks box for the ring demo, forward for the forward-facing demo (COLMAP and
+/// its LLFF file alike), unbounded for fox (a room, every camera facing the wall).
+#[test]
+fn each_layout_gets_its_space() {
+    let dir = tempfile::tempdir().unwrap();
+    let ring = demo(dir.path(), DemoLayout::Ring, 12);
+    let fwd = demo(dir.path(), DemoLayout::Forward, 12);
+    let pick = |p: &Path| {
+        let s = choose_space(&Scene::load(p).unwrap(), SpaceChoice::Auto, 1).unwrap();
+        (s.space.name(), s.why)
+    };
+    let (name, why) = pick(&ring);
+    assert_eq!(name, "box", "{why}");
+    let (name, why) = pick(&fwd);
+    assert_eq!(name, "forward", "{why}");
+    let (name, why) = pick(&fwd.join("poses_bounds.npy"));
+    assert_eq!(name, "forward", "LLFF: {why}");
+    if let Some(fox) = common::shared_data("fox") {
+        let (name, why) = pick(&fox.join("transforms.json"));
+        assert_eq!(name, "unbounded", "fox: {why}");
+        println!("fox: {why}");
+    }
+}
+
+/// The forward-facing demo's LLFF `poses_bounds.npy` gives the COLMAP model's cameras, every
+/// camera faces the scene, and its bounds enclose what the views see.
+#[test]
+fn forward_demo_writes_llff_poses_of_the_same_cameras() {
+    let dir = tempfile::tempdir().unwrap();
+    let fwd = demo(dir.path(), DemoLayout::Forward, 10);
+    let colmap = Scene::load(&fwd).unwrap();
+    let llff = Scene::load(&fwd.join("poses_bounds.npy")).unwrap();
+    assert_eq!(colmap.images.len(), llff.images.len());
+    for (a, b) in colmap.images.iter().zip(&llff.images) {
+        assert_eq!(a.name, b.name);
+        let (ma, mb) = (a.pose.c2w_matrix(), b.pose.c2w_matrix());
+        assert!(ma.abs_diff_eq(mb, 1e-9), "{}: {ma:?} vs {mb:?}", a.name);
+        assert_eq!(colmap.camera_of(a), llff.camera_of(b));
+        // Facing +y (towards the scene), within 30 degrees.
+        let axis = a.pose.camera_to_world_dir(glam::DVec3::Z);
+        assert!(
+            axis.y > 30f64.to_radians().cos() * axis.length() * 0.9,
+            "{axis:?}"
+        );
+    }
+    let (_, bounds) =
+        objnerf::scene::formats::llff::read_npy_f64(&fwd.join("poses_bounds.npy")).unwrap();
+    for row in bounds.chunks(17) {
+        assert!(
+            row[15] > 0.5 && row[16] > row[15] && row[16] < 10.0,
+            "bounds {:?}",
+            &row[15..]
+        );
+    }
+}
+
+/// `truth/removed/mug` is the photo wherever the mug is not seen, and differs where it is;
+/// the pair folders exist.
+#[test]
+fn removal_truth_differs_from_the_photo_only_around_the_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let ring = demo(dir.path(), DemoLayout::Ring, 6);
+    assert!(ring.join("truth/removed/mug+torus").is_dir());
+    for v in 0..6 {
+        let name = format!("view_{v:03}.png");
+        let photo = image::open(ring.join("images").join(&name))
+            .unwrap()
+            .to_rgb8();
+        let removed = image::open(ring.join("truth/removed/mug").join(&name))
+            .unwrap()
+            .to_rgb8();
+        let mask = objnerf::util::mask::dilate(
+            &objnerf::scene::io::read_mask(&ring.join("truth/masks/mug").join(&name)).unwrap(),
+            1,
+        );
+        let (mut inside_changed, mut inside) = (0, 0);
+        for ((p, q), m) in photo.pixels().zip(removed.pixels()).zip(mask.pixels()) {
+            if m.0[0] > 127 {
+                inside += 1;
+                inside_changed += (p != q) as usize;
+            } else {
+                assert_eq!(p, q, "{name}: a pixel away from the mug changed");
+            }
+        }
+        assert!(
+            inside == 0 || inside_changed * 2 > inside,
+            "{name}: only {inside_changed} of the mug's {inside} pixels changed"
+        );
+    }
+}
+
+/// A hand-made segment run of `scene` with the mug's true masks (what `objnerf segment`
+/// writes: report.json naming the scene and each view's status, masks/<object>/).
+fn fake_segment_run(scene: &Path, out: &Path, mask_size: Option<(u32, u32)>) -> PathBuf {
+    let s = Scene::load(scene).unwrap();
+    let views: Vec<serde_json::Value> = s
+        .images
+        .iter()
+        .map(|im| serde_json::json!({"view": im.name, "status": "ok"}))
+        .collect();
+    let report = serde_json::json!({"scene": scene, "objects": [{"name": "mug", "views": views}]});
+    std::fs::create_dir_all(out.join("masks/mug")).unwrap();
+    std::fs::write(out.join("report.json"), report.to_string()).unwrap();
+    for im in &s.images {
+        let mut m = image::open(scene.join("truth/masks/mug").join(&im.name))
+            .unwrap()
+            .to_luma8();
+        if let Some((w, h)) = mask_size {
+            m = image::imageops::resize(&m, w, h, image::imageops::FilterType::Nearest);
+        }
+        m.save(out.join("masks/mug").join(&im.name)).unwrap();
+    }
+    out.to_path_buf()
+}
+
+fn remove_cmd(scene: &Path, seg: &Path, objects: &[&str], out: &Path) -> std::process::Output {
+    let mut cmd = Command::new(common::objnerf_bin());
+    cmd.arg("remove").arg(scene).arg("--segment").arg(seg);
+    for o in objects {
+        cmd.args(["--object", o]);
+    }
+    cmd.arg("--out")
+        .arg(out)
+        .args(["--steps", "50", "--time-budget", "1000"]);
+    cmd.output().unwrap()
+}
+
+/// Bad requests are errors naming the file and the problem, and write nothing.
+#[test]
+fn bad_removals_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let ring = demo(dir.path(), DemoLayout::Ring, 6);
+    let seg = fake_segment_run(&ring, &dir.path().join("seg"), None);
+    let out = dir.path().join("out");
+    let check = |o: std::process::Output, want: &[&str]| {
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        for w in want {
+            assert!(err.contains(w), "'{w}' not in: {err}");
+        }
+        assert!(!out.exists(), "something was written");
+    };
+    // An object the run does not hold.
+    check(
+        remove_cmd(&ring, &seg, &["teapot"], &out),
+        &["report.json", "no object 'teapot'", "mug"],
+    );
+    // Masks of another size than the images.
+    let small = fake_segment_run(&ring, &dir.path().join("small"), Some((100, 80)));
+    check(
+        remove_cmd(&ring, &small, &["mug"], &out),
+        &["view_000.png", "mask is 100x80", "320x240"],
+    );
+    // A removal that leaves a view no pixel.
+    let full = dir.path().join("full");
+    fake_segment_run(&ring, &full, None);
+    image::GrayImage::from_pixel(320, 240, image::Luma([255]))
+        .save(full.join("masks/mug/view_002.png"))
+        .unwrap();
+    check(
+        remove_cmd(&ring, &full, &["mug"], &out),
+        &["view_002.png", "cover every pixel"],
+    );
+    // A segmentation of another scene.
+    let other = demo(&dir.path().join("other"), DemoLayout::Ring, 5);
+    check(
+        remove_cmd(&other, &seg, &["mug"], &out),
+        &["report.json", "not on"],
+    );
+}
+
+/// The click on `object` suggested by the demo's truth, as `--point X,Y`.
+fn click(scene: &Path, object: &str) -> (String, String) {
+    let t = read_truth(scene).unwrap();
+    let o = t.iter().find(|o| o.name == object).unwrap();
+    (o.view.clone(), format!("{},{}", o.click[0], o.click[1]))
+}
+
+/// `objnerf segment` from one click on each of `objects` (SAM must be installed).
+fn segment(scene: &Path, objects: &[&str], out: &Path) {
+    let mut args: Vec<String> = vec!["segment".into(), scene.display().to_string()];
+    for o in objects {
+        let (view, point) = click(scene, o);
+        args.extend([
+            "--view".into(),
+            view,
+            "--object".into(),
+            o.to_string(),
+            "--point".into(),
+            point,
+        ]);
+    }
+    args.extend(["--out".into(), out.display().to_string()]);
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    common::objnerf_ok(&a);
+}
+
+/// `objnerf remove` with every 6th view held out; its report.
+fn remove_and_score(
+    scene: &Path,
+    seg: &Path,
+    objects: &[&str],
+    out: &Path,
+    extra: &[&str],
+) -> serde_json::Value {
+    let mut args: Vec<String> = vec![
+        "remove".into(),
+        scene.display().to_string(),
+        "--segment".into(),
+    ];
+    args.push(seg.display().to_string());
+    for o in objects {
+        args.extend(["--object".into(), o.to_string()]);
+    }
+    args.extend([
+        "--out".into(),
+        out.display().to_string(),
+        "--hold-out-every".into(),
+        "6".into(),
+    ]);
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = common::objnerf_ok(&a);
+    println!("{}", String::from_utf8_lossy(&o.stdout));
+    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+}
+
+/// The per-view Telea inpainting baseline over the same views and region
+/// (examples/removal_telea.py in its own venv): PSNR inside each object's dilated true mask.
+fn telea_inside(scene: &Path, seg: &Path, objects: &[&str], views: &[String]) -> serde_json::Value {
+    let venv = common::repo_root().join("target/venv-opencv");
+    let py = venv.join("bin/python");
+    let ok = |py: &Path| {
+        Command::new(py)
+            .args(["-c", "import cv2"])
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if !ok(&py) {
+        assert!(Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&venv)
+            .status()
+            .unwrap()
+            .success());
+        let st = Command::new(&py)
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "opencv-python-headless",
+                "numpy",
+            ])
+            .status()
+            .unwrap();
+        assert!(
+            st.success() && ok(&py),
+            "pip install opencv-python-headless failed"
+        );
+    }
+    let out = Command::new(&py)
+        .arg(common::repo_root().join("examples/removal_telea.py"))
+        .arg(scene)
+        .arg(seg)
+        .args(["--objects", &objects.join(","), "--views", &views.join(",")])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    v["psnr_inside"].clone()
+}
+
+/// Removal thresholds: full-frame PSNR >= 28 dB, inside each object's true mask (+4 px) >= 22 dB
+/// and above the Telea baseline.
+fn assert_removal(report: &serde_json::Value, telea: &serde_json::Value, objects: &[&str]) {
+    let s = &report["scores"];
+    let frame = s["psnr"].as_f64().unwrap();
+    println!(
+        "train {:.0} s, peak {} MiB; full-frame {frame:.2} dB; inside {}; telea {telea}",
+        report["seconds"]["train"].as_f64().unwrap(),
+        report["peak_rss_mib"],
+        s["hole_psnr"]
+    );
+    assert!(frame >= 28.0, "full-frame PSNR {frame:.2} < 28");
+    for (k, o) in objects.iter().enumerate() {
+        let ours = s["hole_psnr"][k][1].as_f64().unwrap();
+        let base = telea[*o].as_f64().unwrap();
+        assert!(ours >= 22.0, "{o}: PSNR inside its mask {ours:.2} < 22");
+        assert!(
+            ours > base,
+            "{o}: {ours:.2} dB is not above Telea's {base:.2}"
+        );
+    }
+}
+
+/// The mug, segmented from one click, removed from the demo scene; then mug and torus together.
+/// Slow (two scene fields): `cargo test --release --test removal -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn demo_mug_and_mug_with_torus_removed_match_the_truth() {
+    if !common::sam_installed() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let ring = demo(dir.path(), DemoLayout::Ring, 36);
+    let seg = dir.path().join("seg");
+    segment(&ring, &["mug", "torus"], &seg);
+    for objects in [&["mug"][..], &["mug", "torus"][..]] {
+        let out = dir.path().join(objects.join("_"));
+        let r = remove_and_score(&ring, &seg, objects, &out, &[]);
+        let views: Vec<String> = r["scores"]["views"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap().to_string())
+            .collect();
+        assert_eq!(views.len(), 6, "every 6th of 36 views held out");
+        let telea = telea_inside(&ring, &seg, objects, &views);
+        assert_removal(&r, &telea, objects);
+    }
+}
+
+/// PSNR over the pixels of `views` inside each view's true mask of `object` (`None`: every
+/// pixel), between `renders/<view>.png` and the photos.
+fn psnr_inside(scene: &Path, renders: &Path, views: &[String], object: Option<&str>) -> f64 {
+    let (mut sse, mut n) = (0.0f64, 0usize);
+    for v in views {
+        let photo = image::open(scene.join("images").join(v)).unwrap().to_rgb8();
+        let render = image::open(renders.join(v)).unwrap().to_rgb8();
+        let mask = object.map(|o| {
+            objnerf::scene::io::read_mask(&scene.join("truth/masks").join(o).join(v)).unwrap()
+        });
+        for (i, (p, q)) in photo.pixels().zip(render.pixels()).enumerate() {
+            let (x, y) = (i as u32 % photo.width(), i as u32 / photo.width());
+            if mask.as_ref().is_some_and(|m| m.get_pixel(x, y).0[0] <= 127) {
+                continue;
+            }
+            for c in 0..3 {
+                sse += ((p.0[c] as f64 - q.0[c] as f64) / 255.0).powi(2);
+            }
+            n += 3;
+        }
+    }
+    -10.0 * (sse / n.max(1) as f64).log10()
+}
+
+/// The held-out views of a demo scene of `n` views (every 6th: views 3, 9, ...).
+fn held_out(n: usize) -> Vec<String> {
+    (0..n)
+        .filter(|i| i % 6 == 3)
+        .map(|i| format!("view_{i:03}.png"))
+        .collect()
+}
+
+/// The whole demo scene as a scene field (nothing removed), and the forward-facing demo in NDC
+/// space: held-out PSNR >= 28 dB and >= 26 dB. Slow: `cargo test --release --test removal --
+/// --ignored --nocapture`.
+#[test]
+#[ignore]
+fn demo_scene_fields_render_held_out_views() {
+    let dir = tempfile::tempdir().unwrap();
+    for (layout, views, floor) in [
+        (DemoLayout::Ring, 36, 28.0),
+        (DemoLayout::Forward, 24, 26.0),
+    ] {
+        let scene = demo(dir.path(), layout, views);
+        let model = dir.path().join(format!("{layout}.objf"));
+        let (s, m) = (scene.display().to_string(), model.display().to_string());
+        let t = std::time::Instant::now();
+        let o = common::objnerf_ok(&[
+            "train",
+            &s,
+            "--scene-field",
+            "--out",
+            &m,
+            "--hold-out-every",
+            "6",
+        ]);
+        let secs = t.elapsed().as_secs_f64();
+        let log = String::from_utf8_lossy(&o.stderr);
+        let want = if layout == DemoLayout::Ring {
+            "box space"
+        } else {
+            "forward space"
+        };
+        assert!(log.contains(want), "{layout}: {log}");
+        let renders = dir.path().join(format!("{layout}_renders"));
+        common::objnerf_ok(&[
+            "render",
+            &m,
+            "--scene",
+            &s,
+            "--out",
+            &renders.display().to_string(),
+        ]);
+        let p = psnr_inside(&scene, &renders, &held_out(views), None);
+        println!("{layout}: held-out PSNR {p:.2} dB, trained in {secs:.0} s");
+        assert!(p >= floor, "{layout}: held-out PSNR {p:.2} < {floor}");
+    }
+}
+
+/// `objnerf extract` on the forward-facing demo (one click on the mug): the field's box holds the
+/// mug's true box, and held-out PSNR inside its true mask >= 26 dB. Slow (ignored).
+#[test]
+#[ignore]
+fn forward_facing_extract_holds_the_mug() {
+    if !common::sam_installed() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = demo(dir.path(), DemoLayout::Forward, 24);
+    let (view, point) = click(&scene, "mug");
+    let run = dir.path().join("run");
+    let (s, r) = (scene.display().to_string(), run.display().to_string());
+    common::objnerf_ok(&[
+        "extract",
+        &s,
+        "--view",
+        &view,
+        "--object",
+        "mug",
+        "--point",
+        &point,
+        "--out",
+        &r,
+        "--hold-out-every",
+        "6",
+        "--frames",
+        "2",
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("report.json")).unwrap()).unwrap();
+    let setup = &report["objects"][0]["train"]["setup"];
+    let truth = read_truth(&scene).unwrap();
+    let mug = truth.iter().find(|t| t.name == "mug").unwrap();
+    println!(
+        "box {} .. {}: {}",
+        setup["box_min"], setup["box_max"], setup["why"]
+    );
+    for a in 0..3 {
+        let (lo, hi) = (
+            setup["box_min"][a].as_f64().unwrap(),
+            setup["box_max"][a].as_f64().unwrap(),
+        );
+        assert!(
+            lo <= mug.bbox_min[a] && hi >= mug.bbox_max[a],
+            "axis {a}: box {lo}..{hi} misses the mug's {:?}..{:?}",
+            mug.bbox_min,
+            mug.bbox_max
+        );
+    }
+    let renders = dir.path().join("renders");
+    let model = run.join("mug/model.objf").display().to_string();
+    common::objnerf_ok(&[
+        "render",
+        &model,
+        "--scene",
+        &s,
+        "--out",
+        &renders.display().to_string(),
+    ]);
+    let p = psnr_inside(&scene, &renders, &held_out(24), Some("mug"));
+    println!("held-out PSNR inside the mug's true mask: {p:.2} dB");
+    assert!(p >= 26.0, "held-out PSNR inside the mug {p:.2} < 26");
+}
