@@ -4,7 +4,7 @@ use super::print_json;
 use super::progress::Bars;
 use clap::{ArgGroup, Args};
 use objnerf::demo::parse_size;
-use objnerf::edit::file::parse_hex_colour;
+use objnerf::edit::recolour::{hex_colour, parse_hex_colour};
 use objnerf::edit::template::{edit_template, TemplateBackground};
 use objnerf::field::RenderOptions;
 use objnerf::pipeline::render_edit::{render_edit, PathSource, RenderEditOptions};
@@ -141,7 +141,7 @@ impl EditTemplateCmd {
             edit.objects.len(),
             match &edit.background {
                 objnerf::edit::Background::Model { given, .. } => given.clone(),
-                objnerf::edit::Background::Color(c) => objnerf::edit::file::hex_colour(*c),
+                objnerf::edit::Background::Color(c) => hex_colour(*c),
             }
         );
         Ok(())

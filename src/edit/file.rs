@@ -2,7 +2,7 @@
 //! checked (unknown keys and versions are errors; each error names the file and the field, e.g.
 //! `edit.json: objects[1].scale: 0 is not a positive number`), and written back.
 
-use super::recolour::Recolour;
+use super::recolour::{hex_colour, parse_hex_colour, Recolour};
 use crate::error::{Error, Result};
 use crate::util::write_atomic;
 use glam::{DQuat, DVec3};
@@ -47,22 +47,6 @@ pub struct EditFile {
     pub metres_per_unit: f64,
     pub background: Background,
     pub objects: Vec<EditObject>,
-}
-
-/// `#RRGGBB` as sRGB 0..1.
-pub fn parse_hex_colour(s: &str) -> std::result::Result<[f32; 3], String> {
-    let hex = s.strip_prefix('#').unwrap_or("");
-    if hex.len() != 6 || !hex.chars().all(|c| c.is_ascii_hexdigit()) {
-        return Err(format!("'{s}' is not a colour written #RRGGBB"));
-    }
-    let v = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).expect("checked hex") as f32 / 255.0;
-    Ok([v(0), v(2), v(4)])
-}
-
-/// `#rrggbb` from sRGB 0..1.
-pub fn hex_colour(rgb: [f32; 3]) -> String {
-    let b = rgb.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
-    format!("#{:02x}{:02x}{:02x}", b[0], b[1], b[2])
 }
 
 type Fields<'a> = &'a Map<String, Value>;

@@ -5,6 +5,22 @@
 
 use glam::Vec3;
 
+/// `#RRGGBB` as sRGB 0..1.
+pub fn parse_hex_colour(s: &str) -> std::result::Result<[f32; 3], String> {
+    let hex = s.strip_prefix('#').unwrap_or("");
+    if hex.len() != 6 || !hex.chars().all(|c| c.is_ascii_hexdigit()) {
+        return Err(format!("'{s}' is not a colour written #RRGGBB"));
+    }
+    let v = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).expect("checked hex") as f32 / 255.0;
+    Ok([v(0), v(2), v(4)])
+}
+
+/// `#rrggbb` from sRGB 0..1.
+pub fn hex_colour(rgb: [f32; 3]) -> String {
+    let b = rgb.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+    format!("#{:02x}{:02x}{:02x}", b[0], b[1], b[2])
+}
+
 /// How to recolour an object (the edit file's `recolour`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Recolour {
@@ -106,7 +122,7 @@ impl Recolour {
                 .ok_or_else(|| format!("recolour '{spec}': hue:DEGREES needs a number"))?;
             return Ok(Recolour::Hue { degrees, strength });
         }
-        let rgb = super::file::parse_hex_colour(spec)
+        let rgb = parse_hex_colour(spec)
             .map_err(|e| format!("recolour {e} (or hue:DEGREES)"))?;
         Ok(Recolour::Target { rgb, strength })
     }
