@@ -28,6 +28,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
+/// A frame's RGB, row-major.
+type Rgb = Vec<[f32; 3]>;
 
 fn arg(args: &[String], name: &str) -> Option<String> {
     args.iter()
@@ -62,7 +64,7 @@ fn time_render(
     edit: &Path,
     render: &RenderOptions,
     path: &CameraPath,
-) -> Res<(f64, f64, Vec<Vec<[f32; 3]>>)> {
+) -> Res<(f64, f64, Vec<Rgb>)> {
     let loaded = load_edit(EditFile::read(edit)?, Some(render))?;
     let comp = Composite::from_edit(&loaded, *render);
     let (t0, c0) = (Instant::now(), cpu_seconds());
@@ -74,7 +76,7 @@ fn time_render(
     Ok((t0.elapsed().as_secs_f64(), cpu_seconds() - c0, frames))
 }
 
-fn psnr(frames: &[Vec<[f32; 3]>], truth: &[image::RgbImage]) -> f64 {
+fn psnr(frames: &[Rgb], truth: &[image::RgbImage]) -> f64 {
     let (mut se, mut n) = (0.0f64, 0.0f64);
     for (f, t) in frames.iter().zip(truth) {
         for (p, q) in f.iter().zip(t.pixels()) {

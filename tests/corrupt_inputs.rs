@@ -502,11 +502,12 @@ fn setup_case(reader: &str, tmp: &Path, bytes: &[u8]) -> Case {
 
 /// A good edit file: a model `m.objf` beside it, moved, turned, scaled, recoloured, duplicated.
 fn edit_seed() -> Vec<u8> {
+    use std::f64::consts::FRAC_1_SQRT_2;
     let v = serde_json::json!({"version": 1, "metres_per_unit": 1.0,
         "background": {"color": "#ffffff"},
         "objects": [
             {"name": "mug", "model": "m.objf", "pivot": [0.1, 0.2, 0.0],
-             "translation": [0.15, 0.0, 0.0], "rotation": {"w": 0.7071068, "x": 0.0, "y": 0.0, "z": 0.7071068},
+             "translation": [0.15, 0.0, 0.0], "rotation": {"w": FRAC_1_SQRT_2, "x": 0.0, "y": 0.0, "z": FRAC_1_SQRT_2},
              "scale": 1.5, "recolour": {"target": "#2050ff", "strength": 1.0}},
             {"name": "mug.001", "model": "m.objf", "visible": false, "metres_per_unit": 0.25,
              "recolour": {"hue_degrees": 90}}]});

@@ -123,7 +123,7 @@ fn rotation(m: Fields, at: &str) -> std::result::Result<DQuat, String> {
     };
     let quat = DQuat::from_xyzw(c("x")?, c("y")?, c("z")?, c("w")?);
     let n = quat.length();
-    if !(n > 1e-12) {
+    if n.is_nan() || n <= 1e-12 {
         return Err(format!("{at}: a zero quaternion is not a rotation"));
     }
     Ok(quat / n)

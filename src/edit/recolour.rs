@@ -122,8 +122,7 @@ impl Recolour {
                 .ok_or_else(|| format!("recolour '{spec}': hue:DEGREES needs a number"))?;
             return Ok(Recolour::Hue { degrees, strength });
         }
-        let rgb = parse_hex_colour(spec)
-            .map_err(|e| format!("recolour {e} (or hue:DEGREES)"))?;
+        let rgb = parse_hex_colour(spec).map_err(|e| format!("recolour {e} (or hue:DEGREES)"))?;
         Ok(Recolour::Target { rgb, strength })
     }
 

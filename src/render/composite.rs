@@ -175,8 +175,8 @@ pub fn render_ray(c: &Composite, o: Vec3, d: Vec3, s: &mut Scratch) -> PixelOut 
             break;
         }
     }
-    for k in 0..3 {
-        rgb[k] += trans * c.background[k];
+    for (v, b) in rgb.iter_mut().zip(c.background) {
+        *v += trans * b;
     }
     // The background's weight includes what shows through every field; an object wins the
     // pixel only with more weight than the background.
@@ -280,8 +280,8 @@ mod tests {
             let [x, y, z] = f.grid.vertex_coords(v as u32);
             let p = Vec3::new(x as f32, y as f32, z as f32) * f.voxel - 1.0;
             f.grid.data[v * ch] = if (p - c).length() < r { 8.0 } else { -30.0 };
-            for k in 0..3 {
-                f.grid.data[v * ch + 1 + k] = logit(rgb[k]);
+            for (k, c) in rgb.iter().enumerate() {
+                f.grid.data[v * ch + 1 + k] = logit(*c);
             }
         }
         f.prune_occupancy(0.5, 1e-4);
