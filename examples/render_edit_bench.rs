@@ -13,15 +13,14 @@
 mod bench;
 
 use bench::{cpu_seconds, git_commit, machine};
-use glam::DVec3;
-use objnerf::demo::edit::EditTruth;
+use objnerf::demo::edit::{demo_orbit, EditTruth};
 use objnerf::edit::{load_edit, EditFile};
 use objnerf::field::{RayCamera, RenderOptions};
 use objnerf::pipeline::demo_edit::ensure_edit_fields;
 use objnerf::pipeline::render_edit::RenderEditOptions;
 use objnerf::render::composite::{render_frame, Composite};
 use objnerf::render::frames::Passes;
-use objnerf::scene::camera_path::{CameraPath, Orbit};
+use objnerf::scene::camera_path::CameraPath;
 use objnerf::util::mem::peak_rss_mib;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -35,20 +34,6 @@ fn arg(args: &[String], name: &str) -> Option<String> {
     args.iter()
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1).cloned())
-}
-
-fn orbit(width: u32, height: u32) -> Res<CameraPath> {
-    Ok(CameraPath::orbit(&Orbit {
-        center: DVec3::new(0.0, 0.0, 0.13),
-        radius: 1.95,
-        elevation: 0.72,
-        up: DVec3::Z,
-        views: 24,
-        fov_y_deg: 2.0 * (0.5 / 1.05 * 0.75f64).atan().to_degrees(),
-        width,
-        height,
-        fps: 24.0,
-    })?)
 }
 
 /// An edit file in `dir` named `name` with `objects` over the background.
@@ -127,7 +112,7 @@ fn main() -> Res<()> {
     let default = RenderEditOptions::default().render;
     let mut speed = Vec::new();
     for (w, h) in [(320, 240), (640, 480)] {
-        let path = orbit(w, h)?;
+        let path = demo_orbit(24, w, h)?;
         for (name, file) in &configs {
             let (wall, cpu, _) = time_render(file, &default, &path)?;
             let fps = 24.0 / wall;
@@ -141,7 +126,7 @@ fn main() -> Res<()> {
         }
     }
     // Time against PSNR for the step (background + the mug, 320x240), against the exact truth.
-    let path = orbit(320, 240)?;
+    let path = demo_orbit(24, 320, 240)?;
     let one = &configs[1].1;
     let truth_edit = load_edit(EditFile::read(one)?, None)?;
     let truth = EditTruth::new(&truth_edit, 0)?;

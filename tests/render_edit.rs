@@ -5,13 +5,14 @@
 
 mod common;
 
-use common::objnerf_bin;
-use glam::{DVec3, Vec3};
+use common::{objnerf_bin, objnerf_ok};
+use glam::Vec3;
+use objnerf::demo::edit::demo_orbit;
 use objnerf::demo::fields::{write_object_field, DemoFieldOptions};
 use objnerf::demo::{write_demo_scene, DemoOptions};
 use objnerf::field::io::{save, IDENTITY};
 use objnerf::field::{Field, FieldConfig};
-use objnerf::scene::camera_path::{CameraPath, Orbit, PathFrame};
+use objnerf::scene::camera_path::{CameraPath, PathFrame};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -61,36 +62,8 @@ fn tiny_model(path: &Path) {
     .unwrap();
 }
 
-/// A ring around the demo scene like its own cameras (radius 1.95, eye at 0.85 m), with the
-/// demo camera's vertical field of view.
-fn demo_orbit(views: usize, width: u32, height: u32) -> CameraPath {
-    CameraPath::orbit(&Orbit {
-        center: DVec3::new(0.0, 0.0, 0.13),
-        radius: 1.95,
-        elevation: 0.72,
-        up: DVec3::Z,
-        views,
-        fov_y_deg: 2.0 * (0.5 / 1.05 * 0.75f64).atan().to_degrees(),
-        width,
-        height,
-        fps: 24.0,
-    })
-    .unwrap()
-}
-
 fn objnerf(args: &[&str]) -> Output {
     Command::new(objnerf_bin()).args(args).output().unwrap()
-}
-
-fn ok(args: &[&str]) -> Output {
-    let out = objnerf(args);
-    assert!(
-        out.status.success(),
-        "objnerf {}: {}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
 }
 
 fn s(p: &Path) -> &str {
@@ -134,6 +107,7 @@ fn edits_of_a_demo_object_match_the_exact_truth() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("camera_path.json");
     demo_orbit(6, 160, 120)
+        .unwrap()
         .write(&path, &PathFrame::Data)
         .unwrap();
     // The mug's base centre: rotation and scale keep it standing on the floor.
@@ -167,7 +141,7 @@ fn edits_of_a_demo_object_match_the_exact_truth() {
             tmp.path().join(name),
             tmp.path().join(format!("{name}_truth")),
         );
-        ok(&[
+        objnerf_ok(&[
             "render-edit",
             s(&edit),
             "--path",
@@ -177,7 +151,7 @@ fn edits_of_a_demo_object_match_the_exact_truth() {
             "--passes",
             "rgb,alpha,depth,index",
         ]);
-        ok(&[
+        objnerf_ok(&[
             "demo-scene",
             "--edit",
             s(&edit),
@@ -245,7 +219,7 @@ fn the_truth_of_an_identity_edit_is_the_demo_render() {
     let path = tmp.path().join("views.json");
     few.write(&path, &PathFrame::Data).unwrap();
     let out = tmp.path().join("truth");
-    ok(&[
+    objnerf_ok(&[
         "demo-scene",
         "--edit",
         s(&edit),
@@ -301,13 +275,14 @@ fn bad_edits_and_paths_are_clear_errors_and_nothing_is_written() {
         "objects": [{"name": "mug", "model": "m.objf", "scale": 1.0}]});
     let path = t.join("path.json");
     demo_orbit(2, 32, 24)
+        .unwrap()
         .write(&path, &PathFrame::Data)
         .unwrap();
     let good_path: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     // The good pair renders.
     write_json(&t.join("edit.json"), &good_edit);
-    ok(&[
+    objnerf_ok(&[
         "render-edit",
         s(&t.join("edit.json")),
         "--path",
@@ -351,28 +326,6 @@ fn bad_edits_and_paths_are_clear_errors_and_nothing_is_written() {
             "background.model",
         ),
     ];
-    for (what, change, want) in edit_cases {
-        let mut e = good_edit.clone();
-        change(&mut e);
-        let file = t.join(format!("edit_{}.json", what.replace(' ', "_")));
-        write_json(&file, &e);
-        let out = t.join(format!("out_{}", what.replace(' ', "_")));
-        let r = objnerf(&[
-            "render-edit",
-            s(&file),
-            "--path",
-            s(&path),
-            "--out",
-            s(&out),
-        ]);
-        check_refused(
-            &r,
-            what,
-            file.file_name().unwrap().to_str().unwrap(),
-            want,
-            &out,
-        );
-    }
     let path_cases: Vec<(&str, Change, &str)> = vec![
         (
             "unknown camera type",
@@ -396,27 +349,29 @@ fn bad_edits_and_paths_are_clear_errors_and_nothing_is_written() {
         ),
     ];
     let edit = t.join("edit.json");
-    for (what, change, want) in path_cases {
-        let mut p = good_path.clone();
-        change(&mut p);
-        let file = t.join(format!("path_{}.json", what.replace(' ', "_")));
-        write_json(&file, &p);
+    // Each case breaks a copy of the good edit or the good path; render-edit refuses it.
+    let cases = edit_cases
+        .into_iter()
+        .map(|c| ("edit", c))
+        .chain(path_cases.into_iter().map(|c| ("path", c)));
+    for (kind, (what, change, want)) in cases {
+        let mut doc = if kind == "edit" {
+            good_edit.clone()
+        } else {
+            good_path.clone()
+        };
+        change(&mut doc);
+        let file = t.join(format!("{kind}_{}.json", what.replace(' ', "_")));
+        write_json(&file, &doc);
+        let (e, p) = if kind == "edit" {
+            (&file, &path)
+        } else {
+            (&edit, &file)
+        };
         let out = t.join(format!("out_{}", what.replace(' ', "_")));
-        let r = objnerf(&[
-            "render-edit",
-            s(&edit),
-            "--path",
-            s(&file),
-            "--out",
-            s(&out),
-        ]);
-        check_refused(
-            &r,
-            what,
-            file.file_name().unwrap().to_str().unwrap(),
-            want,
-            &out,
-        );
+        let r = objnerf(&["render-edit", s(e), "--path", s(p), "--out", s(&out)]);
+        let name = file.file_name().unwrap().to_str().unwrap();
+        check_refused(&r, what, name, want, &out);
     }
     // A NaN in a matrix, as Python's json module writes it: the error says where.
     let text = serde_json::to_string_pretty(&good_path).unwrap();
@@ -482,7 +437,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
     tiny_model(&t.join("m.objf"));
-    let orbit = demo_orbit(3, 48, 36);
+    let orbit = demo_orbit(3, 48, 36).unwrap();
     let entries: Vec<serde_json::Value> = orbit
         .cameras
         .iter()
@@ -519,7 +474,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
         let file = t.join(format!("{name}.json"));
         write_json(&file, &doc);
         let out = t.join(name);
-        ok(&[
+        objnerf_ok(&[
             "render-edit",
             s(&t.join("edit.json")),
             "--path",
@@ -552,7 +507,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
     }
     // --size: the same cameras at another size, vertical field of view kept.
     let out = t.join("sized");
-    ok(&[
+    objnerf_ok(&[
         "render-edit",
         s(&t.join("edit.json")),
         "--path",
@@ -581,7 +536,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
         &serde_json::json!({"objects": [{"name": "mug"}, {"name": "torus"}]}),
     );
     let edit = t.join("edits/template.json");
-    ok(&["edit-template", s(&run), "--out", s(&edit)]);
+    objnerf_ok(&["edit-template", s(&run), "--out", s(&edit)]);
     let e = objnerf::edit::EditFile::read(&edit).unwrap();
     assert_eq!(e.objects.len(), 2);
     assert_eq!(e.objects[1].model_given, "../run/torus/model.objf");
@@ -592,7 +547,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
     );
     // ... and it renders along a generated orbit.
     let out = t.join("orbit");
-    ok(&[
+    objnerf_ok(&[
         "render-edit",
         s(&edit),
         "--orbit",
@@ -607,7 +562,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
     // ... and along a scene's own views.
     let (_, scene, _) = fixture();
     let out = t.join("views");
-    ok(&[
+    objnerf_ok(&[
         "render-edit",
         s(&edit),
         "--views",
@@ -622,7 +577,7 @@ fn nerfstudio_and_blender_paths_render_unchanged() {
     assert_eq!(back.cameras.len(), 36);
     assert!(out.join("frame_00035.png").is_file());
     let colour = t.join("edits/colour.json");
-    ok(&[
+    objnerf_ok(&[
         "edit-template",
         s(&run),
         "--background",
@@ -677,7 +632,7 @@ fn mesh_recolour_moves_vertex_colours_to_the_target_hue() {
         cb.len()
     );
     let tmp = tempfile::tempdir().unwrap();
-    ok(&[
+    objnerf_ok(&[
         "mesh",
         s(mug),
         "--out",

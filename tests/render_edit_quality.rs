@@ -13,8 +13,9 @@ mod common;
 
 use common::objnerf_bin;
 use glam::DVec3;
+use objnerf::demo::edit::demo_orbit;
 use objnerf::pipeline::demo_edit::{ensure_edit_fields, EditFields};
-use objnerf::scene::camera_path::{CameraPath, Orbit, PathFrame};
+use objnerf::scene::camera_path::PathFrame;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -34,23 +35,6 @@ fn fields() -> (Option<tempfile::TempDir>, EditFields) {
     };
     let f = ensure_edit_fields(&dir, &mut |m| eprintln!("{m}")).unwrap();
     (tmp, f)
-}
-
-/// A 24-frame ring like the demo's own cameras (radius 1.95, eye at 0.85 m, the demo camera's
-/// field of view) at 320x240: novel views between and beside the training views.
-fn orbit() -> CameraPath {
-    CameraPath::orbit(&Orbit {
-        center: DVec3::new(0.0, 0.0, 0.13),
-        radius: 1.95,
-        elevation: 0.72,
-        up: DVec3::Z,
-        views: 24,
-        fov_y_deg: 2.0 * (0.5 / 1.05 * 0.75f64).atan().to_degrees(),
-        width: 320,
-        height: 240,
-        fps: 24.0,
-    })
-    .unwrap()
 }
 
 fn run(args: &[&str]) {
@@ -95,7 +79,10 @@ fn score(f: &EditFields, name: &str, objects: serde_json::Value, edited: &[u8]) 
         "objects": objects});
     std::fs::write(&edit, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
     let path = work.join("camera_path.json");
-    orbit().write(&path, &PathFrame::Data).unwrap();
+    demo_orbit(24, 320, 240)
+        .unwrap()
+        .write(&path, &PathFrame::Data)
+        .unwrap();
     let (ours, truth) = (work.join("render"), work.join("truth"));
     run(&[
         "render-edit",
@@ -269,7 +256,10 @@ fn lego_inserted_into_the_demo_scene() {
     let work = dir.join("runs/lego");
     std::fs::create_dir_all(&work).unwrap();
     let path = work.join("camera_path.json");
-    orbit().write(&path, &PathFrame::Data).unwrap();
+    demo_orbit(24, 320, 240)
+        .unwrap()
+        .write(&path, &PathFrame::Data)
+        .unwrap();
     let write = |name: &str, doc: serde_json::Value| {
         let p = work.join(name);
         std::fs::write(&p, serde_json::to_string_pretty(&doc).unwrap()).unwrap();

@@ -14,19 +14,37 @@
 //! renderer applies it to the field's radiance.
 
 use super::geometry::{Object, World};
-use super::render::{pixel_ray, AMBIENT, DIFFUSE, SKY, SS};
+use super::render::{pixel_ray, AMBIENT, DIFFUSE, RING_RADIUS, SKY, SS, TARGET};
 use super::texture::Textures;
 use crate::edit::recolour::PreparedRecolour;
 use crate::edit::{LoadedBackground, LoadedEdit};
 use crate::error::{Error, Result};
 use crate::render::frames::{write_frame, FrameImages, Passes};
-use crate::scene::camera_path::CameraPath;
+use crate::scene::camera_path::{CameraPath, Orbit};
 use crate::scene::io::DepthMap;
 use crate::scene::{Camera, Pose};
 use crate::util::{Detail, Progress};
 use glam::{DMat3, DVec2, DVec3};
 use rayon::prelude::*;
 use std::path::Path;
+
+/// A ring of `views` cameras like the demo's own (radius 1.95 m around the scene's centre, eyes
+/// at 0.85 m, the demo camera's field of view) at `width` x `height`: novel views to render
+/// edits of the demo scene along.
+pub fn demo_orbit(views: usize, width: u32, height: u32) -> Result<CameraPath> {
+    let cam = super::render::demo_camera(width, height);
+    CameraPath::orbit(&Orbit {
+        center: TARGET,
+        radius: RING_RADIUS,
+        elevation: 0.85 - TARGET.z,
+        up: DVec3::Z,
+        views,
+        fov_y_deg: 2.0 * (0.5 * height as f64 / cam.focal().1).atan().to_degrees(),
+        width,
+        height,
+        fps: 24.0,
+    })
+}
 
 /// The demo object an edit object's name stands for (`mug`, or `mug.001` for a duplicate).
 pub fn demo_object_of(world: &World, name: &str) -> Option<usize> {

@@ -17,8 +17,8 @@ pub(super) const DIFFUSE: f64 = 0.62;
 pub(super) const SKY: [u8; 3] = [200, 215, 235];
 
 /// Camera ring radius and the point the cameras look at.
-const RING_RADIUS: f64 = 1.95;
-const TARGET: DVec3 = DVec3::new(0.0, 0.0, 0.13);
+pub(super) const RING_RADIUS: f64 = 1.95;
+pub(super) const TARGET: DVec3 = DVec3::new(0.0, 0.0, 0.13);
 
 /// The demo's camera: pinhole, about 60 degrees wide, principal point at the image centre.
 pub fn demo_camera(width: u32, height: u32) -> Camera {

@@ -27,10 +27,12 @@ pub struct EditFields {
     pub torus: PathBuf,
 }
 
-/// A segment run of the demo scene in `scene_dir` whose masks of `objects` are their true masks
-/// (what `objnerf segment` writes: report.json with every view ok, `masks/<object>/`).
+/// A segment run of the demo scene in `scene_dir` (read as its transforms.json, which names the
+/// depth maps) whose masks of `objects` are their true masks (what `objnerf segment` writes:
+/// report.json with every view ok, `masks/<object>/`).
 pub fn truth_segment_run(scene_dir: &Path, objects: &[&str], out: &Path) -> Result<()> {
-    let scene = Scene::load(scene_dir)?;
+    let scene_file = scene_dir.join("transforms.json");
+    let scene = Scene::load(&scene_file)?;
     let views: Vec<serde_json::Value> = scene
         .images
         .iter()
@@ -42,11 +44,14 @@ pub fn truth_segment_run(scene_dir: &Path, objects: &[&str], out: &Path) -> Resu
         for im in &scene.images {
             let from = find_mask(&scene_dir.join("truth/masks").join(o), &im.name)?;
             let to = crate::scene::io::mask_file(&dir, &im.name);
+            if let Some(parent) = to.parent() {
+                std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+            }
             std::fs::copy(&from, &to).map_err(|e| Error::io(&to, e))?;
         }
     }
     let report = serde_json::json!({
-        "scene": scene_dir,
+        "scene": scene_file,
         "objects": objects.iter().map(|o| serde_json::json!({"name": o, "views": views})).collect::<Vec<_>>(),
     });
     let path = out.join("report.json");
@@ -94,7 +99,7 @@ pub fn ensure_edit_fields(dir: &Path, log: &mut dyn FnMut(String)) -> Result<Edi
         // The demo's exact depth maps (the removed objects' pixels carry none).
         opts.field.fit.depth = crate::field::DepthMode::Dense;
         opts.field.fit.setup.memory_budget = 512 << 20;
-        let scene = Scene::load(&f.scene)?;
+        let scene = Scene::load(&f.scene.join("transforms.json"))?;
         let r = remove(&scene, &seg, &opts, &dir.join("removed"), &Silent)?;
         log(format!(
             "background without the mug and the torus: {} steps in {:.0} s, grid {:?}, {} hole pixels filled; peak RSS {} MiB",

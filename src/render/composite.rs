@@ -19,6 +19,7 @@
 
 use crate::edit::recolour::PreparedRecolour;
 use crate::edit::{LoadedBackground, LoadedEdit, Similarity};
+use crate::field::eval::{gray8, rgb8};
 use crate::field::render::{forward, Sample};
 use crate::field::{Field, RayCamera, RenderOptions};
 use glam::{Mat3, Vec3};
@@ -235,17 +236,11 @@ pub fn render_frame(c: &Composite, cam: &RayCamera) -> Frame {
 
 impl Frame {
     pub fn rgb8(&self) -> image::RgbImage {
-        image::RgbImage::from_fn(self.width, self.height, |x, y| {
-            let p = self.rgb[(y * self.width + x) as usize];
-            image::Rgb(p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
-        })
+        rgb8(self.width, self.height, &self.rgb)
     }
 
     pub fn alpha8(&self) -> image::GrayImage {
-        image::GrayImage::from_fn(self.width, self.height, |x, y| {
-            let a = self.alpha[(y * self.width + x) as usize];
-            image::Luma([(a.clamp(0.0, 1.0) * 255.0).round() as u8])
-        })
+        gray8(self.width, self.height, &self.alpha)
     }
 
     pub fn index8(&self) -> image::GrayImage {
