@@ -1,7 +1,8 @@
 //! Edits of the demo scene rendered by `objnerf render-edit` against their exact truth (`objnerf
 //! demo-scene --edit`), with fields trained on step budgets: the background without the mug and
-//! the torus (their true masks carry no loss), the mug and the torus from their true masks, and
-//! lego from its alpha. Slow (the background trains for ~10 CPU-minutes): ignored, run with
+//! the torus (`objnerf remove` with their true masks and the true depth), the mug and the torus
+//! from their true masks, and lego from its alpha. Slow (the background trains for ~7
+//! CPU-minutes, lego for ~2): ignored, run with
 //!
 //! ```sh
 //! cargo test --release --test render_edit_quality -- --ignored --nocapture
@@ -19,22 +20,28 @@ use objnerf::scene::camera_path::PathFrame;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::OnceLock;
 
 /// lego trains from its alpha at 200x200 for this many steps.
 const LEGO_STEPS: usize = 3000;
 
-/// The demo scene and its fields in `OBJNERF_EDIT_FIELDS` (or a temporary folder), made once.
-fn fields() -> (Option<tempfile::TempDir>, EditFields) {
-    let (tmp, dir) = match std::env::var_os("OBJNERF_EDIT_FIELDS") {
-        Some(d) => (None, PathBuf::from(d)),
-        None => {
-            let t = tempfile::tempdir().unwrap();
-            let d = t.path().to_path_buf();
-            (Some(t), d)
-        }
-    };
-    let f = ensure_edit_fields(&dir, &mut |m| eprintln!("{m}")).unwrap();
-    (tmp, f)
+/// The demo scene and its fields in `OBJNERF_EDIT_FIELDS` (or a temporary folder), made once
+/// for every test of this file (they run in parallel: the first makes them, the others wait).
+fn fields() -> &'static EditFields {
+    static F: OnceLock<(Option<tempfile::TempDir>, EditFields)> = OnceLock::new();
+    &F.get_or_init(|| {
+        let (tmp, dir) = match std::env::var_os("OBJNERF_EDIT_FIELDS") {
+            Some(d) => (None, PathBuf::from(d)),
+            None => {
+                let t = tempfile::tempdir().unwrap();
+                let d = t.path().to_path_buf();
+                (Some(t), d)
+            }
+        };
+        let f = ensure_edit_fields(&dir, &mut |m| eprintln!("{m}")).unwrap();
+        (tmp, f)
+    })
+    .1
 }
 
 fn run(args: &[&str]) {
@@ -132,7 +139,7 @@ fn score(f: &EditFields, name: &str, objects: serde_json::Value, edited: &[u8]) 
 #[test]
 #[ignore]
 fn demo_edits_against_exact_truth() {
-    let (_tmp, f) = fields();
+    let f = fields();
     let (mug, torus) = (s(&f.mug), s(&f.torus));
     // The mug's base centre: turning and scaling keep it standing on the floor.
     let pivot = [-0.42, 0.32, 0.0];
@@ -171,7 +178,7 @@ fn demo_edits_against_exact_truth() {
     ];
     let mut failed = Vec::new();
     for (name, objects, edited) in cases {
-        let (full, masked, worst) = score(&f, name, objects, &edited);
+        let (full, masked, worst) = score(f, name, objects, &edited);
         eprintln!(
             "{name}: full frame {full:.2} dB (worst frame {worst:.2}), inside the edited object's true mask {masked:.2} dB"
         );
@@ -225,7 +232,7 @@ fn lego_inserted_into_the_demo_scene() {
     let Some(lego) = common::shared_data("lego") else {
         return;
     };
-    let (_tmp, f) = fields();
+    let f = fields();
     let dir = f.scene.parent().unwrap().to_path_buf();
     let model = dir.join("lego.objf");
     if !model.is_file() {

@@ -467,7 +467,8 @@ fn score_against_truth(
     let mut inside: Vec<(Pixels, Pixels)> = vec![(vec![], vec![]); objects.len()];
     for &i in &scored {
         let v = &views[i];
-        let truth = crate::scene::io::read_rgb(&crate::scene::io::mask_file(&truth_dir, &v.name))?;
+        // Named as the demo writes them (a transforms.json names its images images/view_000.png).
+        let truth = crate::scene::io::read_rgb(&crate::scene::io::find_mask(&truth_dir, &v.name)?)?;
         if truth.dimensions() != (v.width, v.height) {
             // Scores are at training resolution; a downscaled run is scored on binned truth.
             return Ok(None);
@@ -479,7 +480,7 @@ fn score_against_truth(
         frame_psnr.push(psnr(&renders[i].rgb, &t));
         for (k, obj) in objects.iter().enumerate() {
             let mask_path =
-                crate::scene::io::mask_file(&root.join("truth/masks").join(obj), &v.name);
+                crate::scene::io::find_mask(&root.join("truth/masks").join(obj), &v.name)?;
             let m = dilate(&read_mask(&mask_path)?, SCORE_DILATE_PX);
             for (p, q) in m.pixels().enumerate() {
                 if is_object(q.0[0]) {
