@@ -130,6 +130,68 @@ put(r, "huge_number", tj.replace('"fl_x": ', '"fl_x": 1e999999', 1) if '"fl_x": 
 put(r, "deep_nesting", '{"frames": ' + "[" * 100000 + "]" * 100000 + "}")
 put(r, "zero_focal", json.dumps({**v, "fl_x": 0.0}))
 
+# --- edit.json (through objnerf render-edit) ------------------------------------------------
+ej = seed("edit_json", "edit.json").decode()
+e = json.loads(ej)
+o0 = e["objects"][0]
+def edit_with(**top):
+    return json.dumps({**e, **top})
+def obj_with(**kv):
+    return edit_with(objects=[{**o0, **kv}] + e["objects"][1:])
+r = "edit_json"
+put(r, "truncated", ej[: len(ej) // 2])
+put(r, "not_utf8", ej.encode().replace(b'"mug"', b'"m\xffg"', 1))
+put(r, "nan_translation", ej.replace(json.dumps(o0["translation"][0]), "NaN", 1))
+put(r, "huge_number", obj_with(scale="SCALE").replace('"SCALE"', "1e999999"))
+put(r, "deep_nesting", '{"objects": ' + "[" * 100000 + "]" * 100000 + "}")
+put(r, "zero_scale", obj_with(scale=0))
+put(r, "negative_scale", obj_with(scale=-2))
+put(r, "zero_quaternion", obj_with(rotation={"w": 0, "x": 0, "y": 0, "z": 0}))
+put(r, "quaternion_missing_w", obj_with(rotation={"x": 0, "y": 0, "z": 1}))
+put(r, "pivot_two_numbers", obj_with(pivot=[1, 2]))
+put(r, "unknown_key", obj_with(colour="red"))
+put(r, "unknown_top_key", edit_with(camera={"fov": 30}))
+put(r, "version_2", edit_with(version=2))
+put(r, "no_version", json.dumps({k: v for k, v in e.items() if k != "version"}))
+put(r, "objects_not_a_list", edit_with(objects={"mug": o0}))
+put(r, "duplicate_names", edit_with(objects=[o0, o0]))
+put(r, "bad_colour", obj_with(recolour={"target": "#12345g"}))
+put(r, "strength_above_one", obj_with(recolour={"hue_degrees": 30, "strength": 1.5}))
+put(r, "both_recolours", obj_with(recolour={"hue_degrees": 30, "target": "#2050ff"}))
+put(r, "missing_model", obj_with(model="no_such_model.objf"))
+put(r, "model_not_a_model", obj_with(model="edit.json"))
+put(r, "background_model_and_colour", edit_with(background={"color": "#ffffff", "model": "m.objf"}))
+put(r, "visible_not_bool", obj_with(visible="yes"))
+put(r, "zero_metres_per_unit", edit_with(metres_per_unit=0))
+
+# --- camera_path.json (through objnerf render-edit --path) -----------------------------------
+cj = seed("camera_path_json", "camera_path.json").decode()
+c = json.loads(cj)
+e0 = c["camera_path"][0]
+def path_with(**top):
+    return json.dumps({**c, **top})
+def cam_with(**kv):
+    return path_with(camera_path=[{**e0, **kv}] + c["camera_path"][1:])
+r = "camera_path_json"
+put(r, "truncated", cj[: len(cj) // 3])
+put(r, "not_utf8", cj.encode().replace(b"perspective", b"persp\xffective", 1))
+put(r, "nan_matrix", cj.replace(json.dumps(e0["camera_to_world"][3]) + ",", "NaN,", 1))
+put(r, "deep_nesting", '{"camera_path": ' + "[" * 100000 + "]" * 100000 + "}")
+put(r, "fov_zero", cam_with(fov=0))
+put(r, "fov_negative", cam_with(fov=-40))
+put(r, "fov_180", cam_with(fov=180))
+put(r, "unknown_camera_type", path_with(camera_type="orthographic"))
+put(r, "equirectangular", path_with(camera_type="equirectangular"))
+put(r, "matrix_15_numbers", cam_with(camera_to_world=e0["camera_to_world"][:15]))
+put(r, "last_row_not_affine", cam_with(camera_to_world=e0["camera_to_world"][:12] + [0, 0, 1, 1]))
+put(r, "not_rigid", cam_with(camera_to_world=[2 * v for v in e0["camera_to_world"][:12]] + [0, 0, 0, 1]))
+put(r, "zero_width", path_with(render_width=0))
+put(r, "fractional_height", path_with(render_height=12.5))
+put(r, "empty_path", path_with(camera_path=[]))
+put(r, "no_seconds", json.dumps({k: v for k, v in c.items() if k != "seconds"}))
+put(r, "negative_fps", path_with(fps=-24))
+put(r, "missing_fov", path_with(camera_path=[{k: v for k, v in e0.items() if k != "fov"}]))
+
 # --- LLFF poses_bounds.npy -------------------------------------------------------------------
 npy = seed("llff_npy", "poses_bounds.npy")
 r = "llff_npy"

@@ -10,6 +10,7 @@
 //! library code takes typed options, returns values and reports, and never prints.
 
 pub mod demo;
+pub mod edit;
 pub mod error;
 pub mod eval;
 pub mod export;

@@ -475,11 +475,64 @@ fn setup_case(reader: &str, tmp: &Path, bytes: &[u8]) -> Case {
                 file: "mobile_sam.pt".into(),
             }
         }
-        // Still to come, with their readers (issue 18): "edit_json" (edit.json, through
-        // `objnerf render-edit`) and "camera_path_json" (nerfstudio's camera_path.json): a case
-        // here and a folder of corrupt files each.
+        // An edit over a model and a path, one of the two corrupt, through `render-edit`.
+        "edit_json" | "camera_path_json" => {
+            objf(&tmp.join("m.objf"));
+            let (edit, path) = (tmp.join("edit.json"), tmp.join("camera_path.json"));
+            std::fs::write(&edit, edit_seed()).unwrap();
+            std::fs::write(&path, camera_path_seed()).unwrap();
+            let file = if reader == "edit_json" { &edit } else { &path };
+            std::fs::write(file, bytes).unwrap();
+            let name = file.file_name().unwrap().to_string_lossy().to_string();
+            Case {
+                args: vec![
+                    "render-edit".into(),
+                    edit,
+                    "--path".into(),
+                    path,
+                    "--out".into(),
+                    tmp.join("out"),
+                ],
+                file: name,
+            }
+        }
         other => panic!("tests/data/corrupt/{other}: no reader of that name"),
     }
+}
+
+/// A good edit file: a model `m.objf` beside it, moved, turned, scaled, recoloured, duplicated.
+fn edit_seed() -> Vec<u8> {
+    use std::f64::consts::FRAC_1_SQRT_2;
+    let v = serde_json::json!({"version": 1, "metres_per_unit": 1.0,
+        "background": {"color": "#ffffff"},
+        "objects": [
+            {"name": "mug", "model": "m.objf", "pivot": [0.1, 0.2, 0.0],
+             "translation": [0.15, 0.0, 0.0], "rotation": {"w": FRAC_1_SQRT_2, "x": 0.0, "y": 0.0, "z": FRAC_1_SQRT_2},
+             "scale": 1.5, "recolour": {"target": "#2050ff", "strength": 1.0}},
+            {"name": "mug.001", "model": "m.objf", "visible": false, "metres_per_unit": 0.25,
+             "recolour": {"hue_degrees": 90}}]});
+    serde_json::to_vec_pretty(&v).unwrap()
+}
+
+/// A good camera_path.json: three cameras on a ring, 16x12.
+fn camera_path_seed() -> Vec<u8> {
+    use objnerf::scene::camera_path::{CameraPath, Orbit, PathFrame};
+    let p = CameraPath::orbit(&Orbit {
+        center: glam::DVec3::ZERO,
+        radius: 2.0,
+        elevation: 0.5,
+        up: glam::DVec3::Z,
+        views: 3,
+        fov_y_deg: 40.0,
+        width: 16,
+        height: 12,
+        fps: 24.0,
+    })
+    .unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("camera_path.json");
+    p.write(&file, &PathFrame::Data).unwrap();
+    std::fs::read(file).unwrap()
 }
 
 /// Every file under `dir`, relative, with its size: what a command wrote shows as a difference.
@@ -622,6 +675,8 @@ fn write_fuzz_seeds() {
     );
     objf(&t.join("m.objf"));
     put("objf", "model.objf", &read(&t.join("m.objf")));
+    put("edit_json", "edit.json", &edit_seed());
+    put("camera_path_json", "camera_path.json", &camera_path_seed());
     let grey = image::GrayImage::from_fn(8, 8, |x, y| image::Luma([((x + y) % 2 * 255) as u8]));
     grey.save(t.join("m.png")).unwrap();
     put("mask_png", "mask.png", &read(&t.join("m.png")));

@@ -17,6 +17,7 @@ import bpy
 import numpy as np
 import pytest
 from conftest import CACHE, scene_objects, skip
+from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Quaternion, Vector
 from objnerf_blender import camera_path, cli
 from test_camera_path import orbit_camera
@@ -104,8 +105,22 @@ def test_orbit_edit_render_edit_and_back(prefs, two_object_run, tmp_path):
     print(f"render-edit index pass vs Blender's proxy silhouette: min IoU {min(ious):.3f}, mean {np.mean(ious):.3f}")
     assert min(ious) >= 0.9
     scene.frame_set(scene.frame_start + 6)
-    scene.render.use_compositing, scene.render.film_transparent = True, False
-    scene.render.filepath = str(tmp_path / "composite.png")
+    r = scene.render
+    r.engine, r.use_compositing, r.film_transparent = "BLENDER_WORKBENCH", True, False
+    r.image_settings.color_mode = "RGB"
+    r.filepath = str(tmp_path / "composite.png")
     bpy.ops.render.render(write_still=True)
     print(f"composite frame (NeRF objects and a Blender cone): {tmp_path / 'composite.png'}")
+    # The cone stands in front of objnerf's empty background (+inf depth there), so the
+    # composite shows Blender's grey cone where it projects, and objnerf's white around it.
+    img = bpy.data.images.load(r.filepath)
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    px = px.reshape(h, w, 4)[::-1, :, :3]
+    cone = bpy.data.objects["Cone"]
+    u, v, _ = world_to_camera_view(scene, scene.camera, cone.matrix_world @ Vector((0, 0, -0.05)))
+    cx, cy = int(u * w), int((1 - v) * h)
+    print(f"composite at the cone ({cx}, {cy}): {px[cy, cx]}, a corner: {px[2, 2]}")
+    assert px[cy, cx].max() < 0.9 and px[2, 2].min() > 0.95
     assert scene_objects("ROOT")

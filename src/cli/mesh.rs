@@ -2,6 +2,7 @@
 
 use clap::Args;
 use glam::DVec3;
+use objnerf::edit::Recolour;
 use objnerf::mesh::from_field::{mesh_model, FieldMeshOptions};
 use objnerf::{Error, Result};
 use std::path::PathBuf;
@@ -31,6 +32,13 @@ pub struct MeshCmd {
     /// Name of the mesh's node (default: the model file's stem).
     #[arg(long)]
     pub name: Option<String>,
+    /// Recolour the vertex colours as render-edit does: a target '#RRGGBB' (hue and chroma
+    /// taken, OKLab lightness kept) or 'hue:DEGREES' (a hue rotation).
+    #[arg(long)]
+    pub recolour: Option<String>,
+    /// How far to recolour (0..1).
+    #[arg(long, default_value_t = 1.0, requires = "recolour")]
+    pub recolour_strength: f32,
 }
 
 /// Parse `--up`.
@@ -65,6 +73,12 @@ impl MeshCmd {
             iso_alpha: self.iso,
             min_component: self.min_component,
             fill_cavities: !self.keep_cavities,
+            recolour: self
+                .recolour
+                .as_deref()
+                .map(|r| Recolour::from_spec(r, self.recolour_strength))
+                .transpose()
+                .map_err(|e| Error::invalid(format!("--recolour: {e}")))?,
         };
         let (_, out) = mesh_model(&self.model, &self.out, &name, &opts, up)?;
         let r = &out.mesh;

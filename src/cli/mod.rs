@@ -3,6 +3,7 @@
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
 mod camera_path;
+mod edit;
 mod export;
 mod field;
 mod mesh;
@@ -64,6 +65,12 @@ enum Command {
     Remove(remove::RemoveCmd),
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene(scene::DemoSceneCmd),
+    /// Render an edit (docs/edit-format.md: a background and objects moved, turned, scaled,
+    /// duplicated, removed, recoloured or inserted) along a camera path, in one pass over all
+    /// fields: frames, passes (alpha, depth, object index), camera_path.json and a video.
+    RenderEdit(edit::RenderEditCmd),
+    /// Write an edit file for an extract run: every object in place over a background.
+    EditTemplate(edit::EditTemplateCmd),
     /// Export a run or a scene for other tools.
     Export {
         #[command(subcommand)]
@@ -104,6 +111,8 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::Demo(cmd) => cmd.run(),
         Command::DemoScene(cmd) => cmd.run(),
         Command::Remove(cmd) => cmd.run(),
+        Command::RenderEdit(cmd) => cmd.run(),
+        Command::EditTemplate(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
         Command::CameraPath(cmd) => cmd.run(),
     }

@@ -3,7 +3,10 @@
 use super::print_json;
 use super::progress::Bars;
 use clap::Args;
+use objnerf::demo::edit::write_edit_truth;
 use objnerf::demo::{parse_size, write_demo_scene, DemoLayout, DemoOptions};
+use objnerf::edit::{load_edit, EditFile};
+use objnerf::scene::camera_path::{CameraPath, PathFrame};
 use objnerf::scene::info::scene_info;
 use objnerf::scene::sfm::{self, SfmInput, SfmOptions};
 use objnerf::{Error, Result, Scene};
@@ -130,10 +133,44 @@ pub struct DemoSceneCmd {
     /// Replace the output folder if it exists.
     #[arg(long)]
     overwrite: bool,
+    /// Render the exact truth of this edit file instead (its objects must be demo objects),
+    /// along --path, into files named as `render-edit` names them.
+    #[arg(long, requires = "path")]
+    edit: Option<PathBuf>,
+    /// The camera_path.json the edit's truth is rendered along.
+    #[arg(long, requires = "edit")]
+    path: Option<PathBuf>,
+    /// Passes of the edit's truth besides RGB (rgb, alpha, depth, index).
+    #[arg(long, default_value = "rgb,alpha,depth,index", requires = "edit")]
+    passes: String,
 }
 
 impl DemoSceneCmd {
     pub fn run(self) -> Result<()> {
+        if let (Some(edit), Some(path)) = (&self.edit, &self.path) {
+            let passes = self
+                .passes
+                .parse()
+                .map_err(|e| Error::invalid(format!("--passes: {e}")))?;
+            let edit = load_edit(EditFile::read(edit)?, None)?;
+            let path = CameraPath::read(path, &PathFrame::Data)?;
+            let n = write_edit_truth(
+                &edit,
+                &path,
+                self.seed,
+                passes,
+                &self.out,
+                self.overwrite,
+                &Bars::default(),
+            )?;
+            println!(
+                "wrote the exact truth of {} along {} cameras into {}",
+                edit.file.path.display(),
+                n,
+                self.out.display()
+            );
+            return Ok(());
+        }
         let (width, height) = parse_size(&self.size)?;
         let opts = DemoOptions {
             seed: self.seed,

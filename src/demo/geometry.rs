@@ -3,13 +3,13 @@
 //! mug and the torus by sphere tracing their signed distance functions, then bisecting the sign
 //! change so that depth is exact to ~1e-9 m (the truth depth maps and tracks rely on it).
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 /// Object names, in id order (id = index).
 pub const OBJECT_NAMES: [&str; 4] = ["mug", "sphere", "box", "torus"];
-/// Surface ids past the objects.
-pub const FLOOR: u8 = 4;
-pub const BACKDROP: u8 = 5;
+/// Surface ids past the objects (objects take ids 0, 1, ... in their order).
+pub const FLOOR: u8 = 250;
+pub const BACKDROP: u8 = 251;
 /// No surface (sky above the backdrop).
 pub const NONE: u8 = 255;
 
@@ -39,39 +39,47 @@ pub struct Hit {
     pub n: DVec3,
 }
 
-/// Where an object sits: world = Rz(yaw) * local + origin. Objects rest on the floor, so only a
-/// rotation about the vertical is needed.
+/// Where an object sits: world = scale * R * local + origin. The demo's objects rest on the floor
+/// turned about the vertical ([`Placement::new`]); an edit moves, turns and scales them
+/// ([`Placement::then`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Placement {
     origin: DVec3,
-    cos: f64,
-    sin: f64,
+    /// Local -> world rotation.
+    rot: DMat3,
+    scale: f64,
 }
 
 impl Placement {
     pub fn new(origin: DVec3, yaw_deg: f64) -> Self {
-        let (sin, cos) = yaw_deg.to_radians().sin_cos();
-        Placement { origin, cos, sin }
+        Placement {
+            origin,
+            rot: DMat3::from_rotation_z(yaw_deg.to_radians()),
+            scale: 1.0,
+        }
+    }
+    /// This placement followed by `x -> scale * rot * x + shift` (an edit's transform).
+    pub fn then(&self, scale: f64, rot: DMat3, shift: DVec3) -> Self {
+        Placement {
+            origin: scale * (rot * self.origin) + shift,
+            rot: rot * self.rot,
+            scale: scale * self.scale,
+        }
+    }
+    pub fn scale(&self) -> f64 {
+        self.scale
     }
     pub fn dir_to_local(&self, d: DVec3) -> DVec3 {
-        DVec3::new(
-            self.cos * d.x + self.sin * d.y,
-            -self.sin * d.x + self.cos * d.y,
-            d.z,
-        )
+        self.rot.transpose() * d
     }
     pub fn to_local(&self, p: DVec3) -> DVec3 {
-        self.dir_to_local(p - self.origin)
+        self.dir_to_local(p - self.origin) / self.scale
     }
     pub fn dir_to_world(&self, d: DVec3) -> DVec3 {
-        DVec3::new(
-            self.cos * d.x - self.sin * d.y,
-            self.sin * d.x + self.cos * d.y,
-            d.z,
-        )
+        self.rot * d
     }
     pub fn to_world(&self, p: DVec3) -> DVec3 {
-        self.dir_to_world(p) + self.origin
+        self.scale * self.dir_to_world(p) + self.origin
     }
 }
 
@@ -196,7 +204,7 @@ impl Object {
 
     /// Distance from a world point to the surface (|SDF|; exact near the surface).
     pub fn distance(&self, p: DVec3) -> f64 {
-        self.sdf_local(self.place.to_local(p)).abs()
+        self.place.scale() * self.sdf_local(self.place.to_local(p)).abs()
     }
 
     /// World axis-aligned bounds.
@@ -246,8 +254,11 @@ impl Object {
 
     /// The nearest intersection with `t` in (0, t_max): (t, world normal).
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<(f64, DVec3)> {
+        // In the local frame distances are divided by the placement's scale.
+        let s = self.place.scale();
         let o = self.place.to_local(ray.o);
         let d = self.place.dir_to_local(ray.d);
+        let t_max = t_max / s;
         let (t0, t1) = slab(o, d, self.local_min, self.local_max)?;
         let t1 = t1.min(t_max);
         if t1 <= t0.max(0.0) {
@@ -289,7 +300,7 @@ impl Object {
             }
         };
         if t > 1e-9 && t < t_max {
-            Some((t, self.place.dir_to_world(n)))
+            Some((t * s, self.place.dir_to_world(n)))
         } else {
             None
         }
@@ -390,6 +401,8 @@ pub struct World {
     /// Objects left out of the render (indices into `objects`; ids and textures unchanged): the
     /// truth of a removal (the demo has no cast shadows, so nothing else changes).
     pub hidden: Vec<usize>,
+    /// Whether the floor and the backdrop are there (an edit over a plain colour has neither).
+    pub scenery: bool,
 }
 
 impl World {
@@ -436,6 +449,7 @@ impl World {
             objects,
             light: DVec3::new(0.45, -0.55, 0.75).normalize(),
             hidden: Vec::new(),
+            scenery: true,
         }
     }
 
@@ -457,7 +471,7 @@ impl World {
                 best = Some((t, i as u8, n));
             }
         }
-        if only.is_none() {
+        if only.is_none() && self.scenery {
             // Floor: the disc z = 0 inside the backdrop.
             if ray.d.z < 0.0 {
                 let t = -ray.o.z / ray.d.z;

@@ -25,6 +25,8 @@
 //! Everything is a pure function of the options: all randomness goes through [`Rng`] seeded from
 //! `seed`, and the parallel rendering writes each pixel from its position alone.
 
+pub mod edit;
+pub mod fields;
 pub mod geometry;
 pub mod holdout;
 pub mod mesh;

@@ -11,14 +11,14 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 /// Samples per pixel side. Odd, so the middle sample is the pixel centre (the truth ray).
-const SS: u32 = 3;
-const AMBIENT: f64 = 0.42;
-const DIFFUSE: f64 = 0.62;
-const SKY: [u8; 3] = [200, 215, 235];
+pub(super) const SS: u32 = 3;
+pub(super) const AMBIENT: f64 = 0.42;
+pub(super) const DIFFUSE: f64 = 0.62;
+pub(super) const SKY: [u8; 3] = [200, 215, 235];
 
 /// Camera ring radius and the point the cameras look at.
-const RING_RADIUS: f64 = 1.95;
-const TARGET: DVec3 = DVec3::new(0.0, 0.0, 0.13);
+pub(super) const RING_RADIUS: f64 = 1.95;
+pub(super) const TARGET: DVec3 = DVec3::new(0.0, 0.0, 0.13);
 
 /// The demo's camera: pinhole, about 60 degrees wide, principal point at the image centre.
 pub fn demo_camera(width: u32, height: u32) -> Camera {

@@ -47,7 +47,7 @@ pub fn truth_masks(scene_dir: &Path, scene: &crate::Scene, object: &str) -> Resu
     scene
         .images
         .par_iter()
-        .map(|im| crate::scene::io::read_mask(&mask_file(&dir, &im.name)))
+        .map(|im| crate::scene::io::read_mask(&crate::scene::io::find_mask(&dir, &im.name)?))
         .collect()
 }
 

@@ -60,19 +60,29 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3
 impl Rendered {
     /// The colour as an 8-bit RGB image.
     pub fn rgb8(&self) -> image::RgbImage {
-        image::RgbImage::from_fn(self.width, self.height, |x, y| {
-            let p = self.rgb[(y * self.width + x) as usize];
-            image::Rgb(p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
-        })
+        rgb8(self.width, self.height, &self.rgb)
     }
 
     /// The opacity as an 8-bit grey image.
     pub fn alpha8(&self) -> image::GrayImage {
-        image::GrayImage::from_fn(self.width, self.height, |x, y| {
-            let a = self.alpha[(y * self.width + x) as usize];
-            image::Luma([(a.clamp(0.0, 1.0) * 255.0).round() as u8])
-        })
+        gray8(self.width, self.height, &self.alpha)
     }
+}
+
+/// Row-major colours in [0, 1] as an 8-bit RGB image.
+pub fn rgb8(width: u32, height: u32, rgb: &[[f32; 3]]) -> image::RgbImage {
+    image::RgbImage::from_fn(width, height, |x, y| {
+        let p = rgb[(y * width + x) as usize];
+        image::Rgb(p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))
+    })
+}
+
+/// Row-major values in [0, 1] as an 8-bit grey image.
+pub fn gray8(width: u32, height: u32, v: &[f32]) -> image::GrayImage {
+    image::GrayImage::from_fn(width, height, |x, y| {
+        let a = v[(y * width + x) as usize];
+        image::Luma([(a.clamp(0.0, 1.0) * 255.0).round() as u8])
+    })
 }
 
 /// A view's truth composited on a background.

@@ -29,6 +29,8 @@ pub struct FieldMeshOptions {
     pub min_component: f64,
     /// Fill empty space that cannot be reached from outside the object (see [`fill_cavities`]).
     pub fill_cavities: bool,
+    /// Recolour the vertex colours as `render-edit` recolours the field's radiance.
+    pub recolour: Option<crate::edit::Recolour>,
 }
 
 impl Default for FieldMeshOptions {
@@ -38,6 +40,7 @@ impl Default for FieldMeshOptions {
             iso_alpha: 0.5,
             min_component: 0.05,
             fill_cavities: true,
+            recolour: None,
         }
     }
 }
@@ -211,11 +214,15 @@ pub fn mesh_field(
     } else {
         0
     };
+    let recolour = opts.recolour.map(|r| r.prepare());
     let colors: Vec<[f32; 3]> = mesh
         .positions
         .par_iter()
         .zip(&mesh.normals)
-        .map(|(p, n)| vertex_color(field, Vec3::from_array(*p), Vec3::from_array(*n)))
+        .map(|(p, n)| {
+            let c = vertex_color(field, Vec3::from_array(*p), Vec3::from_array(*n));
+            recolour.map_or(c, |r| r.apply(c))
+        })
         .collect();
     mesh.colors = Some(colors);
     let report = FieldMeshReport {

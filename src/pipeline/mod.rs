@@ -4,8 +4,10 @@
 //! extracted and scored against its truth).
 
 pub mod demo;
+pub mod demo_edit;
 pub mod extract;
 pub mod remove;
+pub mod render_edit;
 
 pub use extract::{extract, ExtractOptions, ExtractReport};
 pub use remove::{remove, RemoveOptions, RemoveReport};

@@ -472,7 +472,7 @@ fn score_against_truth(
     for &i in &scored {
         let v = &views[i];
         // Scored at the training resolution: the truth binned as the photos were.
-        let truth = crate::scene::io::read_rgb(&crate::scene::io::mask_file(&truth_dir, &v.name))?;
+        let truth = crate::scene::io::read_rgb(&crate::scene::io::find_mask(&truth_dir, &v.name)?)?;
         let factor = (truth.width() / v.width.max(1)).max(1);
         let rgba = image::DynamicImage::ImageRgb8(truth).to_rgba8();
         let (_, _, binned) = crate::field::view::downscale_premultiplied(&rgba, factor);
@@ -483,7 +483,7 @@ fn score_against_truth(
         frame_psnr.push(psnr(&renders[i].rgb, &t));
         for (k, obj) in objects.iter().enumerate() {
             let mask_path =
-                crate::scene::io::mask_file(&root.join("truth/masks").join(obj), &v.name);
+                crate::scene::io::find_mask(&root.join("truth/masks").join(obj), &v.name)?;
             let m = dilate(&read_mask(&mask_path)?, SCORE_DILATE_PX);
             for p in 0..(v.width * v.height) {
                 // A binned pixel is inside when any of its full-resolution pixels is.

@@ -1,6 +1,9 @@
-//! Rendering trained fields to image files: turntables of one object ([`turntable`]) and the
-//! views of a scene ([`views`]).
+//! Rendering trained fields to image files: turntables of one object ([`turntable`]), the views
+//! of a scene ([`views`]), and edits: a background and placed objects in one pass
+//! ([`composite`]).
 
+pub mod composite;
+pub mod frames;
 pub mod turntable;
 pub mod views;
 

@@ -9,7 +9,7 @@
 //! distortion. Axis flips go through `frames.rs`.
 
 use crate::error::{Error, Result};
-use crate::scene::formats::nerfstudio::read_json_file;
+use crate::scene::formats::json::{parse_json, read_json_file};
 use crate::scene::{Camera, CameraModel, Pose, Scene};
 use crate::util::write_atomic;
 use glam::{DMat3, DMat4, DVec3};
@@ -337,8 +337,45 @@ impl CameraPath {
     /// Read a camera_path.json whose matrices are in `frame`; the cameras come out in the data
     /// frame. Every error names the file and, for a camera, its index.
     pub fn read(path: &Path, frame: &PathFrame) -> Result<CameraPath> {
-        let file: PathFileIn = read_json_file(path)?;
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(path, &bytes, frame)
+    }
+
+    /// [`CameraPath::read`] on a file's bytes (`path` names it in errors).
+    pub fn parse(path: &Path, bytes: &[u8], frame: &PathFrame) -> Result<CameraPath> {
+        let file: PathFileIn = parse_json(path, bytes)?;
         Self::from_file(file, frame).map_err(|m| Error::format(path, m))
+    }
+
+    /// The same cameras rendered at `width` x `height`: each keeps its pose and vertical field of
+    /// view (as `ns-render` sizes a path's frames).
+    pub fn resized(&self, width: u32, height: u32) -> Result<CameraPath> {
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!(
+                "size {width}x{height}: both sides must be at least 1 pixel"
+            )));
+        }
+        let size = (self.width, self.height);
+        let cameras = self
+            .cameras
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let fov = fov_deg(&c.camera, self.lens, size)
+                    .and_then(|fov| path_camera(self.lens, width, height, fov))
+                    .map_err(|m| Error::invalid(format!("camera {i}: {m}")))?;
+                Ok(PathCamera {
+                    pose: c.pose,
+                    camera: fov,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(CameraPath {
+            width,
+            height,
+            cameras,
+            ..self.clone()
+        })
     }
 
     fn from_file(file: PathFileIn, frame: &PathFrame) -> std::result::Result<CameraPath, String> {

@@ -232,6 +232,17 @@ pub fn write_depth_png_mm(path: &Path, depth: &DepthMap) -> Result<()> {
 /// compress blocks in parallel write them in completion order, so their bytes differ between
 /// runs; these files are byte-stable.
 pub fn write_depth_exr(path: &Path, depth: &DepthMap) -> Result<()> {
+    write_exr_y(path, depth, 0.0)
+}
+
+/// [`write_depth_exr`] with +inf where nothing was hit instead of 0 (render passes: a Z-combine
+/// must put anything in front of "nothing").
+pub fn write_depth_exr_far(path: &Path, depth: &DepthMap) -> Result<()> {
+    write_exr_y(path, depth, f32::INFINITY)
+}
+
+/// The one EXR writer: `unknown` where a depth is not a positive finite number.
+fn write_exr_y(path: &Path, depth: &DepthMap, unknown: f32) -> Result<()> {
     check_len(path, depth)?;
     let (w, h) = (depth.width as usize, depth.height as usize);
     fn attr(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
@@ -268,7 +279,7 @@ pub fn write_depth_exr(path: &Path, depth: &DepthMap) -> Result<()> {
         out.extend_from_slice(&(y as i32).to_le_bytes());
         out.extend_from_slice(&(row_bytes as i32).to_le_bytes());
         for &d in row {
-            let d = if d.is_finite() && d > 0.0 { d } else { 0.0 };
+            let d = if d.is_finite() && d > 0.0 { d } else { unknown };
             out.extend_from_slice(&d.to_le_bytes());
         }
     }

@@ -1,6 +1,7 @@
 //! Readers and writers for each capture format, all producing and consuming [`Scene`].
 
 pub mod colmap;
+pub mod json;
 pub mod llff;
 pub mod nerfstudio;
 pub mod ply;

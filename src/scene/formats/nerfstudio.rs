@@ -5,6 +5,8 @@
 //! camera-to-world in the OpenGL frame; [`Pose`] does the conversion and keeps the numbers so that
 //! a file read and written again carries the same matrices.
 
+use super::json::parse_json;
+pub(crate) use super::json::read_json_file;
 use super::{check_files_exist, image_size, intern_camera, ply};
 use crate::error::{Error, Result};
 use crate::scene::{Camera, CameraModel, ImageView, Point3D, Pose, Scene, SourceFormat};
@@ -198,29 +200,6 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Scene> {
     scene.validate(path)?;
     check_files_exist(&scene)?;
     Ok(scene)
-}
-
-/// Parse a JSON file written by nerfstudio (or for it) into `T`.
-pub(crate) fn read_json_file<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    parse_json(path, &bytes)
-}
-
-/// JSON from a file's bytes (`path` names it in errors): UTF-8 checked, and a syntax error
-/// that NaN or Infinity explains says so.
-pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<T> {
-    let text = super::text(path, bytes)?;
-    serde_json::from_str(text).map_err(|e| {
-        // Python's json module writes non-finite floats as bare NaN/Infinity: say so.
-        if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
-            Error::format(
-                path,
-                format!("invalid JSON: {e} (the file holds NaN or Infinity, which JSON does not allow: a non-finite pose or number?)"),
-            )
-        } else {
-            Error::json(path, e)
-        }
-    })
 }
 
 fn all_or_none(path: &Path, key: &str, count: usize, total: usize) -> Result<()> {
