@@ -99,6 +99,19 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
     }
 }
 
+/// The self-checks that tripped, last thing a command prints (stdout, so they stay beside the
+/// summary they qualify), or a line saying every check passed.
+fn print_warnings(warnings: &[objnerf::util::Warning]) {
+    if warnings.is_empty() {
+        println!("self-checks: all passed");
+        return;
+    }
+    println!("self-checks: {} warning(s)", warnings.len());
+    for w in warnings {
+        println!("  warning {}", w.line());
+    }
+}
+
 /// Print a report as pretty JSON on stdout.
 fn print_json<T: serde::Serialize>(v: &T) {
     println!(

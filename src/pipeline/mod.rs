@@ -2,6 +2,7 @@
 //! [`extract`] (segment → train → mesh → turntable) and [`demo`] (the demo scene, extracted and
 //! scored against its truth).
 
+pub mod checks;
 pub mod demo;
 pub mod extract;
 

@@ -24,6 +24,18 @@ pub trait ViewSegmenter {
         prompts: &[PointPrompt],
         bbox: Option<[f64; 4]>,
     ) -> Result<ViewMask>;
+
+    /// Other masks the segmenter could as well have given for a lone click in `view` (SAM:
+    /// its answer refined by its own logits, and the click moved by a few pixels), to tell
+    /// whether the click is ambiguous (part or whole; an edge). None by default.
+    fn alternatives(
+        &mut self,
+        _scene: &Scene,
+        _view: usize,
+        _click: &[PointPrompt],
+    ) -> Result<Vec<GrayImage>> {
+        Ok(vec![])
+    }
 }
 
 /// A segmenter's answer: the mask at image size (0/255) and the model's score. (No logits: at
@@ -116,6 +128,10 @@ pub struct ViewResult {
     pub num_projected: usize,
     /// Position in the visiting order (0 = the clicked view), None when never prompted.
     pub order: Option<usize>,
+    /// Of the tracked features well inside the mask, the fraction whose 3D points other views
+    /// saw outside the object: the mask spilled onto something else (None: too few features
+    /// inside to say, see `segment::checks`).
+    pub spill: Option<f64>,
     /// "cut" (the object runs off the frame), "tiny" (mask under `tiny_fraction` of the image).
     pub flags: Vec<&'static str>,
     #[serde(skip)]
@@ -137,6 +153,7 @@ impl ViewResult {
             num_prompts: 0,
             num_projected: 0,
             order: None,
+            spill: None,
             flags: vec![],
             mask: None,
             prompts: vec![],
@@ -150,6 +167,9 @@ pub struct ObjectSegmentation {
     pub views: Vec<ViewResult>,
     /// D: indices into `scene.points` of the object's points.
     pub points: Vec<usize>,
+    /// The lowest IoU between the clicked view's mask and the segmenter's alternatives for the
+    /// same click (None: none were given, e.g. several clicks or a box).
+    pub click_agreement: Option<f64>,
 }
 
 #[derive(Clone, Copy, Default)]

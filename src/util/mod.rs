@@ -1,5 +1,5 @@
 //! Small shared helpers, used by every stage: atomic file output, hashes, binary masks, memory,
-//! paths, progress reporting, a seeded random generator, order statistics.
+//! paths, progress reporting, a seeded random generator, order statistics, the self-checks' warnings.
 
 pub mod atomic;
 pub mod digest;
@@ -9,7 +9,9 @@ pub mod paths;
 pub mod progress;
 pub mod rng;
 pub mod stats;
+pub mod warnings;
 
 pub use atomic::{write_atomic, AtomicDir};
 pub use progress::{Detail, Progress, Silent};
 pub use rng::Rng;
+pub use warnings::{Stage, Warning};

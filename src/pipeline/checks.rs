@@ -1,0 +1,69 @@
+//! `extract`'s self-checks of each object's field and mesh: which ok views are kept out of
+//! training to check the field on, and the checks themselves (see [`crate::field::checks`] and
+//! [`crate::mesh::checks`]).
+
+use crate::error::Result;
+use crate::field::checks::{check_field, measure_held_out, HeldOutCheck};
+use crate::field::{load_views, Field, MaskSource, TrainReport};
+use crate::mesh::checks::check_mesh;
+use crate::mesh::Mesh;
+use crate::scene::Scene;
+use crate::segment::{ObjectSegmentation, ViewStatus};
+use crate::util::Warning;
+use std::sync::Arc;
+
+/// Ok views kept out of training to check the field on: one per [`VIEWS_PER_CHECK_VIEW`] ok
+/// views, at most `most`, spread over the ok views (never the clicked one). Fewer than
+/// [`VIEWS_PER_CHECK_VIEW`] ok views keep none back (the segmentation warns of too few views).
+pub fn check_views(obj: &ObjectSegmentation, most: usize) -> Vec<String> {
+    let ok: Vec<&str> = obj
+        .views
+        .iter()
+        .filter(|v| v.status == ViewStatus::Ok && v.order != Some(0))
+        .map(|v| v.view.as_str())
+        .collect();
+    let k = most.min((ok.len() + 1) / VIEWS_PER_CHECK_VIEW);
+    (0..k)
+        .map(|j| ok[((j as f64 + 0.5) * ok.len() as f64 / k as f64) as usize].to_string())
+        .collect()
+}
+
+/// One ok view in this many is kept back to check the field (so 10 views keep one back, 36
+/// keep three with the default of three at most): enough to catch a field that does not
+/// generalise, few enough not to starve training.
+pub const VIEWS_PER_CHECK_VIEW: usize = 8;
+
+/// Measure the trained `field` on the `held_out` views (with the segmentation's masks, at the
+/// training `downscale`) and run the field checks.
+pub fn field_warnings(
+    scene: &Scene,
+    obj: &ObjectSegmentation,
+    held_out: &[String],
+    downscale: u32,
+    field: &Field,
+    train: &TrainReport,
+    planned_steps: usize,
+) -> Result<(HeldOutCheck, Vec<Warning>)> {
+    let keep: Vec<usize> = scene
+        .images
+        .iter()
+        .enumerate()
+        .filter(|(_, im)| held_out.contains(&im.name))
+        .map(|(i, _)| i)
+        .collect();
+    let held = if keep.is_empty() {
+        HeldOutCheck::default()
+    } else {
+        let sub = scene.subset(&keep);
+        let masks = keep.iter().map(|&i| obj.views[i].mask.clone()).collect();
+        let views = load_views(&sub, &MaskSource::Images(Arc::new(masks)), downscale)?;
+        measure_held_out(field, &views)
+    };
+    let warnings = check_field(&obj.name, train, planned_steps, &held);
+    Ok((held, warnings))
+}
+
+/// The mesh checks of `object`'s mesh cut from `field`.
+pub fn mesh_warnings(object: &str, mesh: &Mesh, field: &Field) -> Vec<Warning> {
+    check_mesh(object, mesh, field.box_min, field.box_max, field.voxel)
+}
