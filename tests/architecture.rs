@@ -29,7 +29,8 @@ const TIERS: &[(&str, u32)] = &[
     ("eval", 3),
     ("demo", 3),
     ("pipeline", 4),
-    ("cli", 5),
+    ("bench", 5),
+    ("cli", 6),
 ];
 
 fn src() -> PathBuf {

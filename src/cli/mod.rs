@@ -2,6 +2,7 @@
 //! command parses its arguments into the library's typed options, calls the library, and prints
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
+mod bench;
 mod export;
 mod field;
 mod mesh;
@@ -59,6 +60,11 @@ enum Command {
     Demo(run::DemoCmd),
     /// Render the built-in demo scene with its exact truth (masks, depth, meshes, visibility).
     DemoScene(scene::DemoSceneCmd),
+    /// Benchmark suites scored against truth (`bench stability`).
+    Bench {
+        #[command(subcommand)]
+        suite: bench::BenchCmd,
+    },
     /// Export a run or a scene for other tools.
     Export {
         #[command(subcommand)]
@@ -96,6 +102,7 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::Demo(cmd) => cmd.run(),
         Command::DemoScene(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
+        Command::Bench { suite } => suite.run(),
     }
 }
 

@@ -3,7 +3,7 @@
 use super::print_json;
 use super::progress::Bars;
 use clap::Args;
-use objnerf::demo::{parse_size, write_demo_scene, DemoOptions};
+use objnerf::demo::{parse_size, write_demo_scene, DemoOptions, Variant};
 use objnerf::scene::info::scene_info;
 use objnerf::scene::sfm::{self, SfmInput, SfmOptions};
 use objnerf::{Error, Result, Scene};
@@ -123,6 +123,11 @@ pub struct DemoSceneCmd {
     /// Fraction of 3D points given one wrong observation.
     #[arg(long, default_value_t = DemoOptions::default().outlier_fraction)]
     outliers: f64,
+    /// A harder version of the scene, about the mug: out-of-frame (every third view cuts it
+    /// in half), occluded (two panels hide it from one side), textureless (plain, few
+    /// points), distractor (an identical mug beside it).
+    #[arg(long, default_value_t = DemoOptions::default().variant)]
+    variant: Variant,
     /// Replace the output folder if it exists.
     #[arg(long)]
     overwrite: bool,
@@ -139,6 +144,7 @@ impl DemoSceneCmd {
             noise_px: self.noise,
             outlier_fraction: self.outliers,
             overwrite: self.overwrite,
+            variant: self.variant,
         };
         let s = write_demo_scene(&opts, &self.out)?;
         println!(

@@ -5,11 +5,11 @@
 
 use glam::DVec3;
 
-/// Object names, in id order (id = index).
+/// The standard scene's object names, in id order (id = index; variants add objects after them).
 pub const OBJECT_NAMES: [&str; 4] = ["mug", "sphere", "box", "torus"];
-/// Surface ids past the objects.
-pub const FLOOR: u8 = 4;
-pub const BACKDROP: u8 = 5;
+/// Surface ids past any object's (objects are numbered from 0).
+pub const FLOOR: u8 = 253;
+pub const BACKDROP: u8 = 254;
 /// No surface (sky above the backdrop).
 pub const NONE: u8 = 255;
 
@@ -110,6 +110,8 @@ pub struct Object {
     /// Local axis-aligned bounds (exact for every shape).
     pub local_min: DVec3,
     pub local_max: DVec3,
+    /// One plain colour instead of its texture (the textureless variant).
+    pub plain: bool,
 }
 
 fn capped_cylinder(p: DVec3, r: f64, z0: f64, z1: f64) -> f64 {
@@ -155,6 +157,7 @@ impl Object {
             place,
             local_min,
             local_max,
+            plain: false,
         }
     }
 

@@ -3,7 +3,7 @@
 //! aim is many well-spread corners and blobs at a few pixels' scale, so that SIFT finds and
 //! matches features on every surface and the real COLMAP can register all views.
 
-use super::geometry::{Hit, World, BACKDROP, BACKDROP_RADIUS, FLOOR};
+use super::geometry::{Hit, Shape, World, BACKDROP, BACKDROP_RADIUS, FLOOR};
 use crate::util::Rng;
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -108,11 +108,12 @@ impl Textures {
             id => {
                 let obj = &world.objects[id as usize];
                 let p = obj.place.to_local(hit.p);
-                match id {
-                    0 => self.mug(p),
-                    1 => self.sphere(p, obj.local_max.z * 0.5),
-                    2 => self.cuboid(p),
-                    _ => self.torus(p),
+                match obj.shape {
+                    _ if obj.plain => DVec3::new(0.86, 0.52, 0.42),
+                    Shape::Mug { .. } => self.mug(p),
+                    Shape::Sphere { .. } => self.sphere(p, obj.local_max.z * 0.5),
+                    Shape::Cuboid { .. } => self.cuboid(p),
+                    Shape::Torus { .. } => self.torus(p),
                 }
             }
         }

@@ -40,6 +40,8 @@ pub struct HeldOutCheck {
     pub views: Vec<String>,
     /// PSNR over the masks' padded boxes, composited on white (None: no held-out view).
     pub psnr: Option<f64>,
+    /// The same per view (views without mask pixels are left out).
+    pub view_psnr: Vec<f64>,
     /// Opacity outside the grown masks over the masks' area (None: no held-out view).
     pub outside_opacity: Option<f64>,
 }
@@ -49,6 +51,7 @@ pub struct HeldOutCheck {
 pub fn measure_held_out(field: &Field, views: &[View]) -> HeldOutCheck {
     let white = [1.0f32; 3];
     let (mut se, mut n, mut outside, mut area) = (0.0f64, 0usize, 0.0f64, 0usize);
+    let mut view_psnr = Vec::new();
     for v in views {
         let r = render_view(field, &RenderOptions::default(), &v.cam, white);
         let truth = truth_on(v, white);
@@ -67,6 +70,7 @@ pub fn measure_held_out(field: &Field, views: &[View]) -> HeldOutCheck {
             }
         }
         let p = psnr(&rb, &tb);
+        view_psnr.push(p);
         se += 10f64.powf(-p / 10.0) * rb.len() as f64;
         n += rb.len();
         let grown = dilate(&mask, OUTSIDE_MARGIN_PX);
@@ -80,6 +84,7 @@ pub fn measure_held_out(field: &Field, views: &[View]) -> HeldOutCheck {
     HeldOutCheck {
         views: views.iter().map(|v| v.name.clone()).collect(),
         psnr: (n > 0).then(|| -10.0 * (se / n as f64).max(1e-20).log10()),
+        view_psnr,
         outside_opacity: (area > 0).then(|| outside / area as f64),
     }
 }

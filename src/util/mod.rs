@@ -3,6 +3,7 @@
 
 pub mod atomic;
 pub mod digest;
+pub mod machine;
 pub mod mask;
 pub mod mem;
 pub mod paths;
