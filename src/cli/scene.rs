@@ -94,6 +94,7 @@ impl SfmCmd {
                 report.seconds,
                 report.model_dir.display()
             );
+            super::print_warnings(&report.warnings);
         }
         Ok(())
     }

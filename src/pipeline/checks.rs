@@ -33,8 +33,11 @@ pub fn check_views(obj: &ObjectSegmentation, most: usize) -> Vec<String> {
 /// generalise, few enough not to starve training.
 pub const VIEWS_PER_CHECK_VIEW: usize = 8;
 
-/// Measure the trained `field` on the `held_out` views (with the segmentation's masks, at the
-/// training `downscale`) and run the field checks.
+/// Training views the field is compared on: at most this many ok views it trained on.
+pub const TRAIN_VIEWS_COMPARED: usize = 3;
+
+/// Measure the trained `field` on the `held_out` views and on a few training views (with the
+/// segmentation's masks, at the training `downscale`) and run the field checks.
 pub fn field_warnings(
     scene: &Scene,
     obj: &ObjectSegmentation,
@@ -51,16 +54,37 @@ pub fn field_warnings(
         .filter(|(_, im)| held_out.contains(&im.name))
         .map(|(i, _)| i)
         .collect();
-    let held = if keep.is_empty() {
+    let mut held = if keep.is_empty() {
         HeldOutCheck::default()
     } else {
-        let sub = scene.subset(&keep);
-        let masks = keep.iter().map(|&i| obj.views[i].mask.clone()).collect();
-        let views = load_views(&sub, &MaskSource::Images(Arc::new(masks)), downscale)?;
-        measure_held_out(field, &views)
+        measure(scene, obj, &keep, downscale, field)?
     };
+    if !keep.is_empty() {
+        let trained: Vec<usize> = (0..scene.images.len())
+            .filter(|i| obj.views[*i].status == ViewStatus::Ok && !keep.contains(i))
+            .collect();
+        let k = trained.len().min(TRAIN_VIEWS_COMPARED);
+        let pick: Vec<usize> = (0..k)
+            .map(|j| trained[(2 * j + 1) * trained.len() / (2 * k)])
+            .collect();
+        held.train_psnr = measure(scene, obj, &pick, downscale, field)?.psnr;
+    }
     let warnings = check_field(&obj.name, train, planned_steps, &held);
     Ok((held, warnings))
+}
+
+/// [`measure_held_out`] on the scene's views `keep` with the segmentation's masks.
+fn measure(
+    scene: &Scene,
+    obj: &ObjectSegmentation,
+    keep: &[usize],
+    downscale: u32,
+    field: &Field,
+) -> Result<HeldOutCheck> {
+    let sub = scene.subset(keep);
+    let masks = keep.iter().map(|&i| obj.views[i].mask.clone()).collect();
+    let views = load_views(&sub, &MaskSource::Images(Arc::new(masks)), downscale)?;
+    Ok(measure_held_out(field, &views))
 }
 
 /// The mesh checks of `object`'s mesh cut from `field`.

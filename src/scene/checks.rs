@@ -23,6 +23,26 @@ pub const MIN_MEAN_TRACK_LENGTH: f64 = 2.5;
 /// field underconstrained: a voxel field needs views all round what it reconstructs.
 pub const MIN_VIEWS_SEEING_OBJECT: usize = 8;
 
+/// COLMAP registering fewer than this fraction of the images lost part of the capture (it
+/// registers nearly every image of a capture with enough overlap).
+pub const MIN_REGISTERED_FRACTION: f64 = 0.9;
+
+/// The check of a reconstruction: enough of the `given` images registered.
+pub fn check_registration(given: usize, registered: usize) -> Option<Warning> {
+    let frac = registered as f64 / given.max(1) as f64;
+    (frac < MIN_REGISTERED_FRACTION).then(|| {
+        Warning::new(
+            Stage::Scene,
+            "few_images_registered",
+            frac,
+            MIN_REGISTERED_FRACTION,
+            format!(
+                "COLMAP registered {registered} of {given} images: the others had too little overlap or texture; add images between them or raise --max-features"
+            ),
+        )
+    })
+}
+
 /// Checks of the scene alone (before segmentation).
 pub fn check_scene(scene: &Scene) -> Vec<Warning> {
     let mut out = Vec::new();

@@ -14,10 +14,12 @@ pub const MIN_CLICK_MASK_FRACTION: f64 = 0.001;
 /// A clicked mask over this fraction of the image is more likely a surface (table, wall, floor)
 /// than an object that a capture goes around (the background itself is refused outright).
 pub const MAX_CLICK_MASK_FRACTION: f64 = 0.4;
-/// SAM's alternatives for the click (refined by its own logits; the click moved by 1% of the
-/// image) overlapping the chosen mask less than this: the click sits on a part boundary or an
-/// edge, and another click would have selected something else. Masks of one object from
-/// nearby clicks agree to 0.9 and more; part and whole rarely to more than 0.7.
+/// Two or more of SAM's alternatives for the click (refined by its own logits; the click moved
+/// by 1% of the image in four directions) overlapping the chosen mask less than this: the
+/// click sits between a part and the whole, and a slightly different click would have
+/// selected something else. Masks of one object from nearby clicks agree to 0.9 and more;
+/// part and whole rarely to more than 0.7. (One alternative alone disagrees whenever a click
+/// near the edge moves off the object, which is harmless.)
 pub const MIN_CLICK_AGREEMENT: f64 = 0.8;
 /// A view whose mask holds more than this fraction of features that other views saw outside the
 /// object has spilled (plant onto planter). Edges give a few percent at most: features within
@@ -72,7 +74,7 @@ pub fn check_segmentation(scene: &Scene, obj: &ObjectSegmentation) -> Vec<Warnin
                 a,
                 MIN_CLICK_AGREEMENT,
                 format!(
-                    "SAM's answer changes when the click in '{}' moves a little or is refined (IoU {a:.2}): the click is on an edge or between a part and the whole; click nearer the middle of what you want, or add a second --point",
+                    "SAM's answer changes when the click in '{}' moves a little or is refined (IoU {a:.2}): the click is between a part and the whole; click nearer the middle of what you want, or add a second --point",
                     clicked.view
                 ),
             ));

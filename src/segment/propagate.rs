@@ -156,8 +156,11 @@ pub fn propagate(
     })
 }
 
-/// The lowest IoU between the clicked mask and the segmenter's alternatives for a lone click
-/// (None when there are none: several clicks, a box, or a segmenter without alternatives).
+/// How far the segmenter's alternatives for a lone click agree with the clicked mask: the
+/// second-lowest IoU among them, so that one alternative leaving the object (a click near an
+/// edge moved outwards) is not enough, while a click between a part and the whole, where
+/// several answers flip, is caught. None when there are fewer than two alternatives (several
+/// clicks, a box, or a segmenter without alternatives).
 fn click_agreement(
     scene: &Scene,
     prompt: &ObjectPrompt,
@@ -167,11 +170,13 @@ fn click_agreement(
     if prompt.points.len() != 1 || prompt.bbox.is_some() {
         return Ok(None);
     }
-    let alts = seg.alternatives(scene, prompt.view, &prompt.points)?;
-    Ok(alts
+    let mut ious: Vec<f64> = seg
+        .alternatives(scene, prompt.view, &prompt.points)?
         .iter()
         .map(|a| iou(mask, a))
-        .min_by(|a, b| a.total_cmp(b)))
+        .collect();
+    ious.sort_by(|a, b| a.total_cmp(b));
+    Ok(ious.get(1).copied())
 }
 
 /// SAM's mask without stray islands and pin-holes (see [`super::regions`]).

@@ -22,6 +22,8 @@ pub struct ObjectReport {
     pub num_ok: usize,
     pub num_obstructed: usize,
     pub num_absent: usize,
+    /// How far SAM's alternatives for the click agree with its mask (see `segment::checks`).
+    pub click_agreement: Option<f64>,
     pub views: Vec<ViewResult>,
 }
 
@@ -180,6 +182,7 @@ impl ObjectReport {
             num_ok: count(ViewStatus::Ok),
             num_obstructed: count(ViewStatus::Obstructed),
             num_absent: count(ViewStatus::Absent),
+            click_agreement: o.click_agreement,
             views: o.views.clone(),
         }
     }

@@ -167,8 +167,8 @@ pub struct ObjectSegmentation {
     pub views: Vec<ViewResult>,
     /// D: indices into `scene.points` of the object's points.
     pub points: Vec<usize>,
-    /// The lowest IoU between the clicked view's mask and the segmenter's alternatives for the
-    /// same click (None: none were given, e.g. several clicks or a box).
+    /// The second-lowest IoU between the clicked view's mask and the segmenter's alternatives
+    /// for the same click (None: fewer than two were given, e.g. several clicks or a box).
     pub click_agreement: Option<f64>,
 }
 

@@ -189,10 +189,9 @@ pub fn quick_suite() -> Vec<CaseSpec> {
     let mug = ["mug"];
     let mut v = vec![
         extract("baseline", demo.clone(), None, &mug),
-        extract("views_5", demo.clone(), Views { count: 5 }, &mug),
         extract("pose_2.0", demo, PoseNoise { degrees: 2.0 }, &mug),
     ];
-    v.extend(clicks(ClickKind::Inside, 3));
+    v.extend(clicks(ClickKind::Inside, 2));
     v.extend(clicks(ClickKind::Edge, 1));
     v
 }

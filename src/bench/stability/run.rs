@@ -306,5 +306,7 @@ fn run_click(
             mask: v.mask.clone(),
         })
         .collect();
-    Ok((vec![score_masks(&prep.truth, "mug", &scored)], warnings))
+    let mut s = score_masks(&prep.truth, "mug", &scored);
+    s.click_agreement = o.click_agreement;
+    Ok((vec![s], warnings))
 }

@@ -25,10 +25,10 @@ pub const MIOU_FLOOR: f64 = 0.85;
 /// Obstructed-view F1 under this: segmentation mostly mistook which views hide the object.
 pub const F1_FLOOR: f64 = 0.5;
 /// Object PSNR (dB over the true mask's padded box on white, in views the field never trained
-/// on) under this is a visibly wrong object. The demo mug scores 21-23 dB there with the
-/// suite's step budget (its fine texture is near the grid's resolution); a misplaced or
-/// smeared mug falls under 17.
-pub const PSNR_FLOOR: f64 = 18.0;
+/// on) under this is a visibly wrong object. The demo mug scores about 20 dB there with the
+/// suite's step budget (its fine texture is near the grid's resolution; over the whole image
+/// that is 34 dB); a mug smeared by 2 degrees of pose noise or made from 5 views scores 11-13.
+pub const PSNR_FLOOR: f64 = 16.0;
 /// Chamfer distance over the true box diagonal above this is a visibly wrong shape (the demo
 /// objects come out at 1-2%; `tests/extract.rs` holds them to 2% at more steps).
 pub const CHAMFER_FLOOR: f64 = 0.03;
@@ -117,6 +117,9 @@ pub struct ObjectScores {
     pub psnr_views: Vec<String>,
     /// Chamfer distance over the true box diagonal.
     pub chamfer: Option<f64>,
+    /// Click cases: how far SAM's alternatives for the click agree with its mask (the
+    /// `click_ambiguous` check's figure).
+    pub click_agreement: Option<f64>,
 }
 
 impl ObjectScores {
