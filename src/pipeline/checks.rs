@@ -16,16 +16,34 @@ use std::sync::Arc;
 /// views, at most `most`, spread over the ok views (never the clicked one). Fewer than
 /// [`VIEWS_PER_CHECK_VIEW`] ok views keep none back (the segmentation warns of too few views).
 pub fn check_views(obj: &ObjectSegmentation, most: usize) -> Vec<String> {
+    let ok_count = obj
+        .views
+        .iter()
+        .filter(|v| v.status == ViewStatus::Ok)
+        .count();
     let ok: Vec<&str> = obj
         .views
         .iter()
-        .filter(|v| v.status == ViewStatus::Ok && v.order != Some(0))
+        .filter(|v| v.order != Some(0) && seen_whole(v))
         .map(|v| v.view.as_str())
         .collect();
-    let k = most.min((ok.len() + 1) / VIEWS_PER_CHECK_VIEW);
+    let k = most
+        .min((ok_count + 1) / VIEWS_PER_CHECK_VIEW)
+        .min(ok.len());
     (0..k)
         .map(|j| ok[((j as f64 + 0.5) * ok.len() as f64 / k as f64) as usize].to_string())
         .collect()
+}
+
+/// Views whose mask covers this much of the object's projected points (and that are not cut by
+/// the frame) are taken to show it whole: a field is checked on those, since a mask of a
+/// partly hidden object is not what the field renders there.
+pub const WHOLE_COVERAGE: f64 = 0.9;
+
+fn seen_whole(v: &crate::segment::ViewResult) -> bool {
+    v.status == ViewStatus::Ok
+        && v.flags.is_empty()
+        && v.expected_coverage.is_some_and(|c| c >= WHOLE_COVERAGE)
 }
 
 /// One ok view in this many is kept back to check the field (so 10 views keep one back, 36
@@ -61,7 +79,7 @@ pub fn field_warnings(
     };
     if !keep.is_empty() {
         let trained: Vec<usize> = (0..scene.images.len())
-            .filter(|i| obj.views[*i].status == ViewStatus::Ok && !keep.contains(i))
+            .filter(|i| seen_whole(&obj.views[*i]) && !keep.contains(i))
             .collect();
         let k = trained.len().min(TRAIN_VIEWS_COMPARED);
         let pick: Vec<usize> = (0..k)
