@@ -194,3 +194,77 @@ pub fn check_field(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::session::RunSummary;
+
+    fn train(psnr: f32, steps: usize, stopped_by: &str) -> TrainReport {
+        TrainReport {
+            setup: None,
+            run: RunSummary {
+                steps,
+                seconds: 1.0,
+                rays_per_second: 1.0,
+                final_psnr: psnr,
+                stopped_by: stopped_by.into(),
+            },
+            vertices: 0,
+            dims: [1; 3],
+            memory_bytes: 0,
+            occupied_cells: 0,
+            depth_targets: 0,
+            finest: None,
+        }
+    }
+
+    fn held(psnr: f64, train_psnr: f64, outside: f64) -> HeldOutCheck {
+        HeldOutCheck {
+            views: vec!["a".into()],
+            train_psnr: Some(train_psnr),
+            psnr: Some(psnr),
+            view_psnr: vec![psnr],
+            outside_opacity: Some(outside),
+        }
+    }
+
+    fn codes(t: &TrainReport, h: &HeldOutCheck) -> Vec<&'static str> {
+        check_field("o", t, 1000, h)
+            .iter()
+            .map(|w| w.code)
+            .collect()
+    }
+
+    #[test]
+    fn each_field_fault_is_named() {
+        let good = train(28.0, 1000, "steps");
+        assert!(codes(&good, &held(20.0, 22.0, 0.02)).is_empty());
+        // Noise lowers training and held-out views alike: no warning.
+        assert!(codes(&good, &held(15.0, 16.0, 0.02)).is_empty());
+        assert_eq!(codes(&good, &held(14.0, 22.0, 0.02)), ["heldout_gap"]);
+        assert_eq!(codes(&good, &held(10.0, 11.0, 0.02)), ["heldout_psnr_low"]);
+        assert_eq!(codes(&good, &held(20.0, 22.0, 0.5)), ["floaters"]);
+        assert_eq!(
+            codes(&train(f32::NAN, 1000, "steps"), &held(20.0, 22.0, 0.0)),
+            ["training_diverged"]
+        );
+        assert_eq!(
+            codes(&train(28.0, 100, "time budget"), &held(20.0, 22.0, 0.0)),
+            ["training_cut_short"]
+        );
+        assert!(codes(&good, &HeldOutCheck::default()).is_empty());
+    }
+
+    #[test]
+    fn the_padded_box_grows_and_clamps() {
+        let mut m = GrayImage::new(40, 30);
+        for y in 10..20 {
+            for x in 5..15 {
+                m.put_pixel(x, y, image::Luma([255]));
+            }
+        }
+        assert_eq!(padded_box(&m), Some((3, 8, 17, 22)));
+        assert_eq!(padded_box(&GrayImage::new(4, 4)), None);
+    }
+}

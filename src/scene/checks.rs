@@ -131,7 +131,7 @@ pub fn views_seeing(scene: &Scene, points: &[usize]) -> usize {
 /// The check of the clicked object's visibility: too few cameras see it.
 pub fn check_object_visibility(scene: &Scene, object: &str, points: &[usize]) -> Option<Warning> {
     let seeing = views_seeing(scene, points);
-    (seeing < MIN_VIEWS_SEEING_OBJECT.min(scene.images.len())).then(|| {
+    (seeing < MIN_VIEWS_SEEING_OBJECT).then(|| {
         Warning::new(
             Stage::Scene,
             "few_cameras_see_object",
@@ -144,4 +144,112 @@ pub fn check_object_visibility(scene: &Scene, object: &str, points: &[usize]) ->
         )
         .about(object)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{
+        Camera, Feature, ImageView, Point3D, Pose, SceneCamera, SourceFormat, TrackElement,
+    };
+    use glam::DVec3;
+
+    /// `views` cameras on a ring round 60 points near the origin, each seeing every point at
+    /// its exact projection shifted by `shift_px`.
+    fn ring(views: usize, shift_px: f64) -> Scene {
+        let cam = Camera::pinhole(200, 150, 180.0, 180.0, 100.0, 75.0);
+        let mut rng = crate::util::Rng::new(3);
+        let pts: Vec<DVec3> = (0..60)
+            .map(|_| {
+                DVec3::new(
+                    rng.range(-0.3, 0.3),
+                    rng.range(-0.3, 0.3),
+                    rng.range(-0.3, 0.3),
+                )
+            })
+            .collect();
+        let mut images = Vec::new();
+        let mut tracks = vec![Vec::new(); pts.len()];
+        for v in 0..views {
+            let a = std::f64::consts::TAU * v as f64 / views as f64;
+            let pose = Pose::look_at(
+                DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 1.0),
+                DVec3::ZERO,
+                DVec3::Z,
+            );
+            let features = pts
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    tracks[i].push(TrackElement {
+                        image: v,
+                        feature: i,
+                    });
+                    let xy = cam.project(pose.world_to_camera(*p)).unwrap();
+                    Feature {
+                        xy: xy + glam::DVec2::new(shift_px, 0.0),
+                        point: Some(i),
+                    }
+                })
+                .collect();
+            images.push(ImageView {
+                id: v as u32 + 1,
+                name: format!("v{v}.png"),
+                path: format!("v{v}.png").into(),
+                camera: 0,
+                pose,
+                mask_path: None,
+                depth_path: None,
+                features,
+            });
+        }
+        Scene {
+            source: "ring".into(),
+            format: SourceFormat::ColmapBinary,
+            cameras: vec![SceneCamera { id: 1, camera: cam }],
+            images,
+            points: pts
+                .iter()
+                .zip(tracks)
+                .enumerate()
+                .map(|(i, (p, track))| Point3D {
+                    id: i as u64 + 1,
+                    xyz: *p,
+                    rgb: [0; 3],
+                    error: -1.0,
+                    track,
+                })
+                .collect(),
+            depth_scale: 1.0,
+            applied_transform: None,
+        }
+    }
+
+    fn codes(s: &Scene) -> Vec<&'static str> {
+        check_scene(s).iter().map(|w| w.code).collect()
+    }
+
+    #[test]
+    fn a_consistent_scene_passes_and_each_fault_is_named() {
+        let good = ring(12, 0.0);
+        assert!(codes(&good).is_empty());
+        let all: Vec<usize> = (0..60).collect();
+        assert_eq!(views_seeing(&good, &all), 12);
+        assert!(check_object_visibility(&good, "o", &all).is_none());
+        assert_eq!(codes(&ring(12, 3.0)), ["high_reprojection_error"]);
+        // Keep two views of every track: short tracks.
+        let two = good.subset(&[0, 6]);
+        assert!(codes(&two).contains(&"short_tracks"));
+        let w = check_object_visibility(&two, "o", &all).unwrap();
+        assert_eq!((w.code, w.figure), ("few_cameras_see_object", 2.0));
+        // Two of twelve views lose their tracks.
+        let mut lost = good.clone();
+        for im in &mut lost.images[..2] {
+            for f in &mut im.features {
+                f.point = None;
+            }
+        }
+        assert!(codes(&lost).contains(&"views_without_tracks"));
+        assert!(check_registration(10, 8).is_some() && check_registration(10, 10).is_none());
+    }
 }

@@ -142,3 +142,86 @@ pub fn check_segmentation(scene: &Scene, obj: &ObjectSegmentation) -> Vec<Warnin
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::segment::types::ViewResult;
+    use image::GrayImage;
+
+    fn scene() -> Scene {
+        Scene {
+            source: "s".into(),
+            format: crate::scene::SourceFormat::Demo,
+            cameras: vec![],
+            images: vec![],
+            points: vec![],
+            depth_scale: 1.0,
+            applied_transform: None,
+        }
+    }
+
+    /// `n` ok views with a 10 x 10 mask in a 100 x 100 image (1%), the first clicked.
+    fn object(n: usize) -> ObjectSegmentation {
+        let views = (0..n)
+            .map(|i| {
+                let mut v = ViewResult::unsegmented(&format!("v{i}"));
+                v.status = ViewStatus::Ok;
+                v.order = Some(i);
+                v.expected_iou = Some(0.9);
+                v.spill = Some(0.0);
+                let mut m = GrayImage::new(100, 100);
+                for y in 0..10 {
+                    for x in 0..10 {
+                        m.put_pixel(x, y, image::Luma([255]));
+                    }
+                }
+                v.mask = Some(m);
+                v
+            })
+            .collect();
+        ObjectSegmentation {
+            name: "o".into(),
+            views,
+            points: vec![],
+            click_agreement: Some(0.95),
+        }
+    }
+
+    fn codes(o: &ObjectSegmentation) -> Vec<&'static str> {
+        check_segmentation(&scene(), o)
+            .iter()
+            .map(|w| w.code)
+            .collect()
+    }
+
+    #[test]
+    fn a_clean_segmentation_passes_and_each_fault_is_named() {
+        assert!(codes(&object(12)).is_empty());
+        assert_eq!(codes(&object(5)), ["few_views_ok"]);
+        let mut o = object(12);
+        o.click_agreement = Some(0.5);
+        o.views[3].spill = Some(0.4);
+        o.views[4].expected_iou = Some(0.3);
+        assert_eq!(
+            codes(&o),
+            ["click_ambiguous", "mask_spill", "mask_beyond_points"]
+        );
+        let mut o = object(12);
+        o.views[0].mask = Some(GrayImage::from_pixel(100, 100, image::Luma([255])));
+        assert_eq!(codes(&o), ["click_mask_huge"]);
+        let mut o = object(12);
+        let mut speck = GrayImage::new(100, 100);
+        speck.put_pixel(5, 5, image::Luma([255]));
+        o.views[0].mask = Some(speck);
+        let w = check_segmentation(&scene(), &o);
+        assert_eq!(w[0].code, "click_mask_tiny");
+        assert_eq!(w[0].figure, 1e-4);
+        assert_eq!(w[0].object.as_deref(), Some("o"));
+        // Obstructed views do not count as spilled or oversized.
+        let mut o = object(12);
+        o.views[5].status = ViewStatus::Obstructed;
+        o.views[5].spill = Some(0.9);
+        assert!(codes(&o).is_empty());
+    }
+}

@@ -176,9 +176,11 @@ fn run_extract(
         .zip(&report.objects)
         .map(|(name, o)| score_object(scene, prep, name, o, &run))
         .collect::<Result<Vec<_>>>()?;
-    // Keep the report; the models, meshes and renders are large and the scores are in hand.
-    let json = std::fs::read(run.join("report.json")).map_err(|e| Error::io(&run, e))?;
-    crate::util::atomic::write_bytes_atomic(&dir.join("report.json"), &json)?;
+    // Keep the reports; the models, meshes and renders are large and the scores are in hand.
+    for (from, to) in [("report.json", "report.json"), ("segment/report.json", "segment_report.json")] {
+        let json = std::fs::read(run.join(from)).map_err(|e| Error::io(run.join(from), e))?;
+        crate::util::atomic::write_bytes_atomic(&dir.join(to), &json)?;
+    }
     std::fs::remove_dir_all(&run).map_err(|e| Error::io(&run, e))?;
     Ok((scores, report.warnings))
 }
@@ -196,16 +198,19 @@ fn score_object(
         let text = std::fs::read_to_string(&p).map_err(|e| Error::io(&p, e))?;
         serde_json::from_str(&text).map_err(|e| Error::json(&p, e))?
     };
-    let statuses: BTreeMap<String, String> = seg_report["objects"]
+    let statuses: BTreeMap<String, (String, bool)> = seg_report["objects"]
         .as_array()
         .into_iter()
         .flatten()
         .filter(|ob| ob["name"] == name)
         .flat_map(|ob| ob["views"].as_array().cloned().unwrap_or_default())
         .map(|v| {
+            let cut = v["flags"]
+                .as_array()
+                .is_some_and(|f| f.iter().any(|x| x == "cut"));
             (
                 v["view"].as_str().unwrap_or_default().to_string(),
-                v["status"].as_str().unwrap_or_default().to_string(),
+                (v["status"].as_str().unwrap_or_default().to_string(), cut),
             )
         })
         .collect();
@@ -213,9 +218,10 @@ fn score_object(
         .images
         .iter()
         .map(|im| {
-            let status = match statuses.get(&im.name).map(|s| s.as_str()) {
-                Some("ok") => ViewStatus::Ok,
-                Some("obstructed") => ViewStatus::Obstructed,
+            let (status, cut) = statuses.get(&im.name).cloned().unwrap_or_default();
+            let status = match status.as_str() {
+                "ok" => ViewStatus::Ok,
+                "obstructed" => ViewStatus::Obstructed,
                 _ => ViewStatus::Absent,
             };
             let file = mask_file(&masks, &im.name);
@@ -227,6 +233,7 @@ fn score_object(
             Ok(ScoredView {
                 view: im.name.clone(),
                 status,
+                cut,
                 mask,
             })
         })
@@ -303,6 +310,7 @@ fn run_click(
         .map(|v| ScoredView {
             view: v.view.clone(),
             status: v.status,
+            cut: v.flags.contains(&"cut"),
             mask: v.mask.clone(),
         })
         .collect();

@@ -33,7 +33,7 @@ pub const PSNR_FLOOR: f64 = 16.0;
 /// objects come out at 1-2%; `tests/extract.rs` holds them to 2% at more steps).
 pub const CHAMFER_FLOOR: f64 = 0.03;
 /// A view shows the object when at least this fraction of it is visible (in frame and
-/// unoccluded); below, segmentation should call it obstructed.
+/// unoccluded); below, segmentation should call it obstructed (or cut by the frame).
 pub const VISIBLE: f64 = 0.5;
 /// Views scored for the field show this fraction of the object at least (fully visible:
 /// a true mask of a partly hidden object is not what the field should render).
@@ -141,10 +141,12 @@ impl ObjectScores {
     }
 }
 
-/// A view's segmentation as scored: its name, status and mask.
+/// A view's segmentation as scored: its name, status, whether it was flagged "cut" (the
+/// object runs off the frame: a partial view, said so) and mask.
 pub struct ScoredView {
     pub view: String,
     pub status: ViewStatus,
+    pub cut: bool,
     pub mask: Option<GrayImage>,
 }
 
@@ -169,7 +171,9 @@ pub fn score_masks(truth: &Truth, object: &str, views: &[ScoredView]) -> ObjectS
             shown += 1;
             good += iou_v.is_some_and(|i| i >= MIOU_FLOOR) as usize;
         }
-        let flagged = v.status != ViewStatus::Ok;
+        // A view showing under half the object should be obstructed, or flagged as cut by
+        // the frame (the truth's visible fraction counts both).
+        let flagged = v.status != ViewStatus::Ok || v.cut;
         match (flagged, hidden) {
             (true, true) => tp += 1,
             (true, false) => fp += 1,
