@@ -52,6 +52,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
                 time_budget: Some(secs),
                 plateau_db: None,
                 window: 100,
+                ..Default::default()
             },
             ..Default::default()
         },
@@ -131,6 +132,7 @@ fn main() -> objnerf::Result<()> {
         time_budget: Some(secs),
         plateau_db: None,
         window: 100,
+        ..Default::default()
     };
     let mut next_log = 0.0;
     let summary = field::run(&mut trainer, &views, &rays, &stop, |s| {

@@ -2,6 +2,7 @@
 //! (with its dataparser_transforms.json) gives the cameras of the same path in the data frame, and
 //! bad files are clear errors.
 
+mod common;
 mod support;
 
 use glam::{DMat3, DMat4, DVec3};
@@ -343,4 +344,96 @@ fn paths_a_camera_path_cannot_hold_are_refused_and_nothing_is_written() {
     assert!(e.contains("centred principal point"), "{e}");
     assert!(!file.exists());
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0);
+}
+
+/// `objnerf camera-path` on a path in the viewer's frame, with the run's dataparser_transforms.json
+/// and the dataset whose applied_transform nerfstudio applied: it prints the data-frame cameras
+/// (1e-6) and writes them as a data-frame path; a bad path is a clear error and writes nothing.
+#[test]
+fn cli_reads_a_viewer_path_into_the_data_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (applied, transform, scale) = transforms();
+    let dpt = t.join("dataparser_transforms.json");
+    let json = serde_json::json!({"transform": transform, "scale": scale});
+    std::fs::write(&dpt, json.to_string()).unwrap();
+    let mut scene = support::tiny_scene(&t.join("data"));
+    scene.applied_transform = Some(applied);
+    scene.points.iter_mut().for_each(|p| p.track.clear());
+    scene.images.iter_mut().for_each(|i| i.features.clear());
+    let tf = t.join("data/transforms.json");
+    objnerf::scene::formats::nerfstudio::write(&scene, &tf).unwrap();
+    let frame = PathFrame::Viewer(DataparserTransform::read(&dpt, Some(applied)).unwrap());
+    let path = orbit();
+    let viewer = t.join("viewer.json");
+    path.write(&viewer, &frame).unwrap();
+
+    let out = t.join("data_path.json");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let args = [
+        "camera-path".to_string(),
+        s(&viewer),
+        "--dataparser-transforms".into(),
+        s(&dpt),
+        "--scene".into(),
+        s(&tf),
+        "--out".into(),
+        s(&out),
+        "--json".into(),
+    ];
+    let o = common::objnerf_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let printed: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(printed["camera_type"], "perspective");
+    assert_eq!(printed["cameras"].as_array().unwrap().len(), 12);
+    let mut worst = 0.0f64;
+    for (c, want) in printed["cameras"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(&path.cameras)
+    {
+        let m: Vec<f64> = serde_json::from_value(c["camera_to_world"].clone()).unwrap();
+        let got = [0, 1, 2].map(|r| [m[r * 4], m[r * 4 + 1], m[r * 4 + 2], m[r * 4 + 3]]);
+        worst = worst.max(max_diff(got, want.pose.c2w_opengl()));
+        let (fx, fy) = want.camera.focal();
+        let (cx, cy) = want.camera.principal_point();
+        for (k, v) in [("fx", fx), ("fy", fy), ("cx", cx), ("cy", cy)] {
+            assert!((c[k].as_f64().unwrap() - v).abs() < 1e-9, "{k}");
+        }
+        assert_eq!(
+            (c["width"].as_u64(), c["height"].as_u64()),
+            (Some(320), Some(240))
+        );
+    }
+    assert!(worst < 1e-6, "viewer-frame path read by the CLI: {worst:e}");
+    assert_same_cameras(
+        &path,
+        &CameraPath::read(&out, &PathFrame::Data).unwrap(),
+        1e-9,
+    );
+
+    // The text summary, and a bad path: an error naming the file, exit 1, no --out written.
+    let o = common::objnerf_ok(&["camera-path", &s(&out)]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("12 perspective camera(s) at 320x240"),
+        "{text}"
+    );
+    let bad = t.join("bad.json");
+    let mut broken: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    broken["camera_path"][3]["fov"] = (-42.0).into();
+    std::fs::write(&bad, broken.to_string()).unwrap();
+    let not_written = t.join("never.json");
+    let o = std::process::Command::new(common::objnerf_bin())
+        .args(["camera-path", &s(&bad), "--out", &s(&not_written)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        err.contains("bad.json") && err.contains("camera_path[3]: fov = -42"),
+        "{err}"
+    );
+    assert!(!not_written.exists());
 }

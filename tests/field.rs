@@ -374,6 +374,7 @@ fn lego_200_reaches_28_db_within_5_minutes() {
         time_budget: Some(300.0),
         plateau_db: None,
         window: 500,
+        ..Default::default()
     };
     let run = field::run(&mut t, &views, &rays, &stop, |_| {});
     let ev = field::eval::evaluate(&t.field, &field::RenderOptions::default(), &test);

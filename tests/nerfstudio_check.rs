@@ -293,7 +293,7 @@ fn export_case(name: &'static str, input: &Path, opts: ExportOptions, tmp: &Path
     let out = tmp.join(name);
     let report = export(input, &out, &opts).unwrap();
     println!("{name}: {}", report.summary().replace('\n', "\n    "));
-    let run = objnerf::export::segment_run::SegmentRun::find(input);
+    let run = objnerf::segment::saved::SegmentRun::find(input);
     let (scene, points, frames) = match run {
         None => {
             let scene = Scene::load(input).unwrap();
@@ -305,7 +305,7 @@ fn export_case(name: &'static str, input: &Path, opts: ExportOptions, tmp: &Path
             let mut report: Value =
                 serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
                     .unwrap();
-            let scene = objnerf::export::segment_run::SegmentRun::open(&dir)
+            let scene = objnerf::segment::saved::SegmentRun::open(&dir)
                 .unwrap()
                 .scene;
             let obj = &mut report["objects"][0];

@@ -8,6 +8,7 @@
   target/blender-tests/demo and reused by later test runs).
 """
 
+import contextlib
 import os
 import shutil
 import subprocess
@@ -83,3 +84,13 @@ def demo_run(objnerf_bin):
 
 def scene_objects(role):
     return [o for o in bpy.context.scene.objects if o.objnerf.role == role]
+
+
+@contextlib.contextmanager
+def blender_report(match):
+    """The operator inside fails with a Blender error report matching `match` (bpy.ops raises
+    RuntimeError("Error: ...")), not with a Python traceback or an unexpected exception."""
+    with pytest.raises(RuntimeError, match=match) as e:
+        yield
+    msg = str(e.value)
+    assert msg.startswith("Error: ") and "Traceback" not in msg and "unexpected" not in msg, msg

@@ -35,6 +35,23 @@ def test_register_unregister_cleanly():
         assert MODULE not in bpy.context.preferences.addons
 
 
+def test_every_operator_is_listed_and_called_in_a_test():
+    """The add-on's operators are exactly OPERATORS, and each is called (`bpy.ops.objnerf.NAME(`)
+    in some test of this folder: a new operator without a test fails here."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_utils.enable(MODULE, default_set=True, handle_error=None)
+    try:
+        found = sorted(n[len("OBJNERF_OT_"):] for n in dir(bpy.types) if n.startswith("OBJNERF_OT_"))
+    finally:
+        addon_utils.disable(MODULE, default_set=True, handle_error=None)
+    assert found == sorted(OPERATORS), found
+    here = os.path.dirname(os.path.abspath(__file__))
+    tests = "".join(open(os.path.join(here, f)).read() for f in os.listdir(here)
+                    if f.startswith("test_") and f.endswith(".py"))
+    uncalled = [op for op in OPERATORS if f"bpy.ops.objnerf.{op}(" not in tests]
+    assert not uncalled, f"operators no test calls: {uncalled}"
+
+
 INSTALL = """
 import bpy, addon_utils, json, sys
 bpy.ops.extensions.package_install_files(filepath=sys.argv[1], repo="user_default")

@@ -4,11 +4,12 @@ and the bad cases (missing folder, missing files, a scene format that needs the 
 import json
 import os
 import shutil
+import struct
 
 import bpy
 import numpy as np
 import pytest
-from conftest import scene_objects
+from conftest import blender_report, scene_objects
 from mathutils.bvhtree import BVHTree
 from objnerf_blender import cli, formats, frames
 
@@ -57,6 +58,45 @@ def test_demo_run_cameras_project_like_objnerf(prefs, demo_run):
     print(f"reprojection: {n} point-views over 36 cameras, max |Blender - objnerf| = {worst:.2e} px")
     assert n > 36 * 1000
     assert worst < 0.5
+    # objnerf's own projections: the demo scene's COLMAP features are the points projected by
+    # objnerf (src/demo/tracks.rs: no noise, no outliers by default), in COLMAP's pixel frame.
+    feats, xyz_by_id = read_colmap_tracks(os.path.join(demo_run, "scene", "sparse", "0"))
+    worst_f, n_f = 0.0, 0
+    root_m = np.array(root.matrix_world, dtype=np.float64)
+    for name, obs in feats.items():
+        pts = np.array([xyz_by_id[pid] for _, _, pid in obs])
+        pts_world = np.c_[pts, np.ones(len(pts))] @ root_m.T[:, :3]
+        theirs = blender_project(by_name[os.path.splitext(os.path.basename(name))[0]], pts_world, 320, 240)
+        err = np.linalg.norm(theirs - np.array([(x, y) for x, y, _ in obs]), axis=1)
+        worst_f, n_f = max(worst_f, float(err.max())), n_f + len(obs)
+    print(f"against objnerf's features (sparse/0/images.bin): {n_f} observations over {len(feats)} cameras, "
+          f"max |Blender - objnerf| = {worst_f:.2e} px")
+    assert len(feats) == 36 and n_f > 36 * 1000
+    assert worst_f < 0.5
+
+
+def read_colmap_tracks(model):
+    """COLMAP binary images.bin / points3D.bin (layout in ../shared/DESIGN.md): per image name,
+    its observations (x, y, point3D_id) of triangulated points; and point id -> xyz."""
+    with open(os.path.join(model, "points3D.bin"), "rb") as f:
+        data = f.read()
+    (n,), off, xyz = struct.unpack_from("<Q", data), 8, {}
+    for _ in range(n):
+        pid, x, y, z = struct.unpack_from("<Q3d", data, off)
+        track_len = struct.unpack_from("<Q", data, off + 43)[0]
+        xyz[pid], off = (x, y, z), off + 51 + 8 * track_len
+    with open(os.path.join(model, "images.bin"), "rb") as f:
+        data = f.read()
+    (n,), off, feats = struct.unpack_from("<Q", data), 8, {}
+    for _ in range(n):
+        off += 4 + 7 * 8 + 4
+        end = data.index(b"\0", off)
+        name, off = data[off:end].decode(), end + 1
+        (n2d,) = struct.unpack_from("<Q", data, off)
+        off += 8
+        obs = [struct.unpack_from("<2dq", data, off + 24 * k) for k in range(n2d)]
+        feats[name], off = [o for o in obs if o[2] >= 0], off + 24 * n2d
+    return feats, xyz
     r = bpy.context.scene.render
     assert (r.resolution_x, r.resolution_y, r.resolution_percentage) == (320, 240, 100)
 
@@ -83,7 +123,7 @@ def test_mug_proxy_sits_on_its_segmented_points(prefs, demo_run):
 
 
 def test_missing_run_folder_is_a_report(addon, tmp_path):
-    with pytest.raises(RuntimeError, match="does not exist"):
+    with blender_report("does not exist"):
         bpy.ops.objnerf.import_run(directory=str(tmp_path / "nope"))
     assert not scene_objects("ROOT")
 
@@ -92,10 +132,10 @@ def test_run_missing_files_is_a_report(addon, demo_run, tmp_path):
     run = tmp_path / "run"
     run.mkdir()
     shutil.copy(os.path.join(demo_run, "run", "report.json"), run / "report.json")
-    with pytest.raises(RuntimeError, match=r"missing mug/model\.objf, mug/mesh\.ply, segment/mug_points\.ply"):
+    with blender_report(r"missing mug/model\.objf, mug/mesh\.ply, segment/mug_points\.ply"):
         bpy.ops.objnerf.import_run(directory=str(run))
     (run / "report.json").write_text("{not json")
-    with pytest.raises(RuntimeError, match="not valid JSON"):
+    with blender_report("not valid JSON"):
         bpy.ops.objnerf.import_run(directory=str(run))
     assert not scene_objects("ROOT")
 
@@ -118,7 +158,7 @@ def test_import_scene_and_other_formats(prefs, objnerf_bin, demo_run):
 def test_binary_not_found_is_a_report(addon, tmp_path):
     p = bpy.context.preferences.addons["objnerf_blender"].preferences
     p.binary = str(tmp_path / "no-such-objnerf")
-    with pytest.raises(RuntimeError, match="objnerf binary not found"):
+    with blender_report("objnerf binary not found"):
         bpy.ops.objnerf.import_scene(filepath=str(tmp_path))  # a folder without transforms.json
 
 

@@ -3,6 +3,7 @@
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
 mod bench;
+mod camera_path;
 mod export;
 mod field;
 mod mesh;
@@ -70,6 +71,9 @@ enum Command {
         #[command(subcommand)]
         to: export::ExportCmd,
     },
+    /// Read a nerfstudio camera_path.json (data frame, or the viewer's with the run's
+    /// dataparser_transforms.json): print its cameras; --out writes it in the data frame.
+    CameraPath(camera_path::CameraPathCmd),
 }
 
 /// Parse the command line, run the command, print an error and exit 1 if it failed.
@@ -103,6 +107,7 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::DemoScene(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
         Command::Bench { suite } => suite.run(),
+        Command::CameraPath(cmd) => cmd.run(),
     }
 }
 

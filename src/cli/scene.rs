@@ -3,7 +3,7 @@
 use super::print_json;
 use super::progress::Bars;
 use clap::Args;
-use objnerf::demo::{parse_size, write_demo_scene, DemoOptions, Variant};
+use objnerf::demo::{parse_size, write_demo_scene, DemoLayout, DemoOptions, Variant};
 use objnerf::scene::info::scene_info;
 use objnerf::scene::sfm::{self, SfmInput, SfmOptions};
 use objnerf::{Error, Result, Scene};
@@ -112,9 +112,13 @@ pub struct DemoSceneCmd {
     out: PathBuf,
     #[arg(long, default_value_t = DemoOptions::default().seed)]
     seed: u64,
-    /// Number of views on the camera ring.
+    /// Number of views.
     #[arg(long, default_value_t = DemoOptions::default().views)]
     views: usize,
+    /// Where the cameras stand: ring (around the scene) or forward (a grid in front of it, all
+    /// facing it, as LLFF captures; also writes poses_bounds.npy).
+    #[arg(long, default_value_t = DemoOptions::default().layout)]
+    layout: DemoLayout,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value_t = default_size())]
     size: String,
@@ -146,6 +150,7 @@ impl DemoSceneCmd {
             outlier_fraction: self.outliers,
             overwrite: self.overwrite,
             variant: self.variant,
+            layout: self.layout,
         };
         let s = write_demo_scene(&opts, &self.out)?;
         println!(

@@ -390,6 +390,9 @@ pub struct World {
     pub objects: Vec<Object>,
     /// Unit direction towards the light.
     pub light: DVec3,
+    /// Objects left out of the render (indices into `objects`; ids and textures unchanged): the
+    /// truth of a removal (the demo has no cast shadows, so nothing else changes).
+    pub hidden: Vec<usize>,
 }
 
 impl World {
@@ -435,6 +438,7 @@ impl World {
         World {
             objects,
             light: DVec3::new(0.45, -0.55, 0.75).normalize(),
+            hidden: Vec::new(),
         }
     }
 
@@ -448,7 +452,7 @@ impl World {
         let mut best: Option<(f64, u8, DVec3)> = None;
         let mut t_max = f64::INFINITY;
         for (i, obj) in self.objects.iter().enumerate() {
-            if only.is_some_and(|k| k != i) {
+            if only.is_some_and(|k| k != i) || self.hidden.contains(&i) {
                 continue;
             }
             if let Some((t, n)) = obj.intersect(ray, t_max) {

@@ -14,7 +14,13 @@
 //! truth/masks/<object>/view_000.png visible mask of each object (0/255)
 //! truth/meshes/<object>.{ply,obj}   exact surface, tessellated, world coordinates
 //! truth/objects.json                click in view 0, visible fraction per view, bounds
+//! truth/removed/<object>/view_000.png  the view without that object (a removal's truth); also
+//!                                   for every pair, truth/removed/<a>+<b>/ (names in scene order)
+//! poses_bounds.npy                  LLFF poses and depth bounds (forward-facing layout only)
 //! ```
+//!
+//! With [`DemoLayout::Forward`] the cameras stand on a plane in front of the scene, all facing it
+//! (an LLFF-style forward-facing capture), instead of on the ring.
 //!
 //! Everything is a pure function of the options: all randomness goes through [`Rng`] seeded from
 //! `seed`, and the parallel rendering writes each pixel from its position alone.
@@ -55,6 +61,38 @@ pub struct DemoOptions {
     pub overwrite: bool,
     /// A harder version of the scene ([`Variant`]).
     pub variant: Variant,
+    /// Where the cameras stand.
+    pub layout: DemoLayout,
+}
+
+/// Where the demo's cameras stand.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DemoLayout {
+    /// A ring around the scene, looking at its centre (a turntable capture).
+    #[default]
+    Ring,
+    /// A grid on a plane in front of the scene, all facing it (LLFF's forward-facing captures).
+    Forward,
+}
+
+impl std::str::FromStr for DemoLayout {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "ring" => Ok(DemoLayout::Ring),
+            "forward" => Ok(DemoLayout::Forward),
+            _ => Err(format!("layout must be ring or forward, not '{s}'")),
+        }
+    }
+}
+
+impl std::fmt::Display for DemoLayout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            DemoLayout::Ring => "ring",
+            DemoLayout::Forward => "forward",
+        })
+    }
 }
 
 impl Default for DemoOptions {
@@ -68,6 +106,7 @@ impl Default for DemoOptions {
             outlier_fraction: 0.0,
             overwrite: false,
             variant: Variant::Standard,
+            layout: DemoLayout::Ring,
         }
     }
 }
@@ -141,16 +180,27 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
     let tex = texture::Textures::new(opts.seed);
     let mut rng = Rng::new(opts.seed);
     let cam = render::demo_camera(opts.width, opts.height);
-    let mut poses = render::demo_poses(opts.views, &mut rng);
+    let mut poses = match opts.layout {
+        DemoLayout::Ring => render::demo_poses(opts.views, &mut rng),
+        DemoLayout::Forward => render::forward_poses(opts.views, &mut rng),
+    };
     opts.variant.adjust_poses(&world, &cam, &mut poses);
     let names: Vec<String> = (0..opts.views).map(view_name).collect();
     let object_names: Vec<&str> = world.objects.iter().map(|o| o.name).collect();
 
     // Views one after another, each view's rows in parallel.
     let mut ids = Vec::with_capacity(opts.views);
+    let mut bounds = Vec::with_capacity(opts.views);
     for (name, pose) in names.iter().zip(&poses) {
         let r = render::render_view(&world, &tex, &cam, pose);
         writer::write_view(&root, name, (opts.width, opts.height), &r, &object_names)?;
+        for set in removal_sets(world.objects.len()) {
+            let rgb = render::render_without(&world, &tex, &cam, pose, &set, &r);
+            let names: Vec<&str> = set.iter().map(|&k| world.objects[k].name).collect();
+            let dir = writer::removed_dir(&root, &names);
+            writer::write_removed(&dir, name, opts.width, opts.height, rgb)?;
+        }
+        bounds.push(depth_bounds(&r.depth));
         ids.push(r.ids);
     }
 
@@ -191,6 +241,9 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
     colmap::write_model(&scene, &root.join("sparse/0"), ModelFormat::Binary)?;
 
     crate::scene::formats::nerfstudio::write(&scene, &root.join("transforms.json"))?;
+    if opts.layout == DemoLayout::Forward {
+        crate::scene::formats::llff::write(&scene, &bounds, &root.join("poses_bounds.npy"))?;
+    }
 
     for obj in &world.objects {
         let m = mesh::tessellate(obj).to_mesh(obj.name);
@@ -249,4 +302,28 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
         objects,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// A view's near and far depth (LLFF's bounds): the nearest and farthest surface hit, padded by
+/// 10%.
+fn depth_bounds(depth: &[f32]) -> [f64; 2] {
+    let (lo, hi) = depth
+        .iter()
+        .filter(|d| **d > 0.0)
+        .fold((f32::MAX, 0.0f32), |(lo, hi), &d| (lo.min(d), hi.max(d)));
+    if hi <= 0.0 {
+        return [0.1, 10.0];
+    }
+    [0.9 * lo as f64, 1.1 * hi as f64]
+}
+
+/// The sets of objects whose removal the demo renders the truth of: each object, and each pair.
+fn removal_sets(n: usize) -> Vec<Vec<usize>> {
+    let mut sets: Vec<Vec<usize>> = (0..n).map(|k| vec![k]).collect();
+    for a in 0..n {
+        for b in a + 1..n {
+            sets.push(vec![a, b]);
+        }
+    }
+    sets
 }

@@ -108,6 +108,21 @@ pub fn write_view(
     Ok(())
 }
 
+/// Where the truth of removing `objects` lies: `truth/removed/<a>+<b>...`, the names in the
+/// scene's order ([`super::OBJECT_NAMES`]), whatever order they are given in.
+pub fn removed_dir(root: &Path, objects: &[&str]) -> std::path::PathBuf {
+    let mut names: Vec<&str> = objects.to_vec();
+    names.sort_by_key(|n| super::OBJECT_NAMES.iter().position(|o| o == n));
+    names.dedup();
+    root.join("truth/removed").join(names.join("+"))
+}
+
+/// Write one view of a removal's truth into `dir` ([`removed_dir`]).
+pub fn write_removed(dir: &Path, name: &str, w: u32, h: u32, rgb: Vec<u8>) -> Result<()> {
+    let img = RgbImage::from_raw(w, h, rgb).expect("buffer has w*h*3 bytes");
+    save_image_atomic(&mask_file(dir, name), &DynamicImage::ImageRgb8(img))
+}
+
 /// Where a view's truth depth maps go (PNG millimetres, EXR metres).
 pub fn depth_paths(root: &Path, stem: &str) -> (std::path::PathBuf, std::path::PathBuf) {
     let d = root.join("truth/depth");

@@ -2,4 +2,3 @@
 //! masks, depth, points) that nerfstudio's own dataparser loads unchanged.
 
 pub mod nerfstudio;
-pub mod segment_run;

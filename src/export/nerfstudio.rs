@@ -16,11 +16,11 @@
 //! `segment/report.json` names the scene and says per view whether the object is ok, obstructed
 //! or absent: an object export keeps the ok views only.
 
-use super::segment_run::{RunObject, SegmentRun};
 use crate::error::{Error, Result};
 use crate::scene::formats::{intern_camera, nerfstudio};
 use crate::scene::io::{read_depth, read_mask, write_depth_png_mm, DepthMap};
 use crate::scene::{Camera, ImageView, Point3D, Scene, SceneCamera};
+use crate::segment::saved::{RunObject, SegmentRun};
 use crate::util::atomic::save_image_atomic;
 use crate::util::paths::normalize;
 use crate::util::AtomicDir;

@@ -8,7 +8,7 @@ use super::layout::{choose_space, SpaceChoice};
 use super::rays::RaySet;
 use super::session::{prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule};
 use super::train::{StepStats, TrainConfig, Trainer};
-use super::view::{load_views, MaskSource};
+use super::view::{load_views, MaskSource, View};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::util::mask::{dilate, is_object};
@@ -142,11 +142,7 @@ pub fn fit_scene(
             (t, rays, None)
         }
     };
-    let stop = StopRule {
-        time_budget: opts.time_budget,
-        plateau_db: Some(0.01),
-        window: 500,
-    };
+    let stop = StopRule::for_budget(opts.time_budget);
     let summary = run(&mut trainer, &views, &rays, &stop, progress);
     let report = TrainReport {
         setup,
@@ -212,72 +208,122 @@ pub fn fit_scene_field(
     opts: &SceneFitOptions,
     progress: &mut dyn FnMut(&StepStats),
 ) -> Result<Fitted> {
-    let fit = &opts.fit;
-    if fit.downscale == 0 {
-        return Err(Error::invalid("--downscale must be at least 1"));
-    }
-    let space = choose_space(scene, opts.space, fit.downscale)?;
-    let mut views = load_views(scene, &MaskSource::Opaque, fit.downscale)?;
-    if let Some(removed) = &opts.removed {
-        for (v, m) in views.iter_mut().zip(removed.iter()) {
-            if let Some(m) = m {
-                v.loss_mask = Some(loss_mask(
-                    m,
-                    opts.dilate_px,
-                    fit.downscale,
-                    v.width,
-                    v.height,
-                ));
+    let mut fit = SceneFit::new(scene, opts)?;
+    fit.train(&StopRule::for_budget(opts.fit.time_budget), progress);
+    Ok(fit.finish())
+}
+
+/// A scene field being trained, with its views and rays, for callers that train in phases
+/// (removal: train, find the hole, fill it, train on).
+pub struct SceneFit {
+    pub trainer: Trainer,
+    /// The training views (removed objects' pixels marked in each `loss_mask`).
+    pub views: Vec<View>,
+    pub rays: RaySet,
+    setup: SetupReport,
+    depth_targets: usize,
+    runs: Vec<RunSummary>,
+}
+
+impl SceneFit {
+    /// Load the views, choose the space, seed the grid from the sparse points.
+    pub fn new(scene: &Scene, opts: &SceneFitOptions) -> Result<SceneFit> {
+        let fit = &opts.fit;
+        if fit.downscale == 0 {
+            return Err(Error::invalid("--downscale must be at least 1"));
+        }
+        let space = choose_space(scene, opts.space, fit.downscale)?;
+        let mut views = load_views(scene, &MaskSource::Opaque, fit.downscale)?;
+        if let Some(removed) = &opts.removed {
+            for (v, m) in views.iter_mut().zip(removed.iter()) {
+                if let Some(m) = m {
+                    v.loss_mask = Some(loss_mask(
+                        m,
+                        opts.dilate_px,
+                        fit.downscale,
+                        v.width,
+                        v.height,
+                    ));
+                }
             }
         }
+        // Depth targets where the loss applies (a removed object's points give none).
+        let depth_targets = match fit.depth {
+            DepthMode::None => 0,
+            DepthMode::Sparse => add_sparse_depth(&mut views, scene, fit.downscale)?,
+            DepthMode::Dense => add_dense_depth(&mut views, scene, fit.downscale)?,
+        };
+        views.retain(|v| !fit.exclude_views.contains(&v.name));
+        if views.is_empty() {
+            return Err(Error::invalid(format!(
+                "{}: no views left to train on",
+                scene.source.display()
+            )));
+        }
+        let cfg = TrainConfig {
+            seed: fit.seed,
+            steps: fit.steps,
+            prune_after: opts.prune_after,
+            carve_weight: opts.carve_weight,
+            stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
+            distortion_weight: opts.distortion_weight,
+            ..Default::default()
+        };
+        let seeds: Vec<(glam::Vec3, [u8; 3])> = scene
+            .points
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !opts.exclude_points.contains(i))
+            .map(|(_, p)| (p.xyz.as_vec3(), p.rgb))
+            .collect();
+        let (trainer, rays, setup) = prepare_scene(&views, &space, &fit.setup, cfg, &seeds)?;
+        Ok(SceneFit {
+            trainer,
+            views,
+            rays,
+            setup,
+            depth_targets,
+            runs: Vec::new(),
+        })
     }
-    // Depth targets where the loss applies (a removed object's points give none).
-    let depth_targets = match fit.depth {
-        DepthMode::None => 0,
-        DepthMode::Sparse => add_sparse_depth(&mut views, scene, fit.downscale)?,
-        DepthMode::Dense => add_dense_depth(&mut views, scene, fit.downscale)?,
-    };
-    views.retain(|v| !fit.exclude_views.contains(&v.name));
-    if views.is_empty() {
-        return Err(Error::invalid(format!(
-            "{}: no views left to train on",
-            scene.source.display()
-        )));
+
+    /// Train until `stop` says so.
+    pub fn train(&mut self, stop: &StopRule, progress: &mut dyn FnMut(&StepStats)) -> RunSummary {
+        let summary = run(&mut self.trainer, &self.views, &self.rays, stop, progress);
+        self.runs.push(summary.clone());
+        summary
     }
-    let cfg = TrainConfig {
-        seed: fit.seed,
-        steps: fit.steps,
-        prune_after: opts.prune_after,
-        carve_weight: opts.carve_weight,
-        stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
-        distortion_weight: opts.distortion_weight,
-        ..Default::default()
-    };
-    let seeds: Vec<(glam::Vec3, [u8; 3])> = scene
-        .points
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| !opts.exclude_points.contains(i))
-        .map(|(_, p)| (p.xyz.as_vec3(), p.rgb))
-        .collect();
-    let (mut trainer, rays, setup) = prepare_scene(&views, &space, &fit.setup, cfg, &seeds)?;
-    let stop = StopRule {
-        time_budget: fit.time_budget,
-        plateau_db: Some(0.01),
-        window: 500,
-    };
-    let summary = run(&mut trainer, &views, &rays, &stop, progress);
-    let report = TrainReport {
-        setup: Some(setup),
-        run: summary,
-        vertices: trainer.field.grid.num_vertices(),
-        dims: trainer.field.grid.dims,
-        memory_bytes: trainer.memory_bytes(),
-        occupied_cells: trainer.field.occupied_cells(),
-        depth_targets,
-        finest: trainer.finest.clone(),
-    };
-    Ok(Fitted { trainer, report })
+
+    /// Seconds trained so far, over every phase.
+    pub fn seconds(&self) -> f64 {
+        self.runs.iter().map(|r| r.seconds).sum()
+    }
+
+    /// Rebuild the training rays after the views' loss masks or depth targets changed.
+    pub fn rebuild_rays(&mut self) {
+        self.rays = RaySet::build(&self.views, &self.trainer.field);
+    }
+
+    /// The trained field and its report (the phases' runs summed).
+    pub fn finish(self) -> Fitted {
+        let last = self.runs.last().cloned().unwrap_or_default();
+        let summary = RunSummary {
+            seconds: self.runs.iter().map(|r| r.seconds).sum(),
+            ..last
+        };
+        let t = self.trainer;
+        let report = TrainReport {
+            setup: Some(self.setup),
+            run: summary,
+            vertices: t.field.grid.num_vertices(),
+            dims: t.field.grid.dims,
+            memory_bytes: t.memory_bytes(),
+            occupied_cells: t.field.occupied_cells(),
+            depth_targets: self.depth_targets,
+            finest: t.finest.clone(),
+        };
+        Fitted { trainer: t, report }
+    }
 }
 
 /// Which pixels of a view (downscaled by `factor` to `w` x `h`) carry a loss: those whose whole

@@ -46,6 +46,7 @@ pub mod eval;
 pub mod fit;
 pub mod grid;
 pub mod holdout;
+pub mod hole;
 pub mod io;
 pub mod layout;
 pub mod model;

@@ -271,14 +271,44 @@ impl GridPlan {
 }
 
 /// When to stop.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct StopRule {
-    /// Seconds of training.
+    /// Seconds of training (the schedule follows the time spent when it is further along than
+    /// the steps).
     pub time_budget: Option<f64>,
     /// Stop when the batch PSNR (averaged over `window` steps) rose by less than this many dB
     /// over the last window, once the grid is at its finest.
     pub plateau_db: Option<f32>,
     pub window: usize,
+    /// End this run (one phase of a longer schedule) at this step or after this many seconds
+    /// of the budget, without changing the schedule.
+    pub until_step: Option<usize>,
+    pub until_seconds: Option<f64>,
+    /// Seconds of the budget spent by earlier phases.
+    pub seconds_before: f64,
+}
+
+impl StopRule {
+    /// The rule of `objnerf train`: the budget, or a plateau at the finest grid.
+    pub fn for_budget(time_budget: Option<f64>) -> StopRule {
+        StopRule {
+            time_budget,
+            ..Default::default()
+        }
+    }
+}
+
+impl Default for StopRule {
+    fn default() -> Self {
+        StopRule {
+            time_budget: None,
+            plateau_db: Some(0.01),
+            window: 500,
+            until_step: None,
+            until_seconds: None,
+            seconds_before: 0.0,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Default, Serialize)]
@@ -306,9 +336,11 @@ pub fn run(
     let mut last_window: Option<f64> = None;
     let mut last = StepStats::default();
     let w = stop.window.max(1);
-    while trainer.step < trainer.cfg.steps {
+    let last_step = stop.until_step.unwrap_or(usize::MAX).min(trainer.cfg.steps);
+    let spent = || stop.seconds_before + start.elapsed().as_secs_f64();
+    while trainer.step < last_step {
         if let Some(b) = stop.time_budget {
-            trainer.time_frac = (start.elapsed().as_secs_f64() / b.max(1e-9)) as f32;
+            trainer.time_frac = (spent() / b.max(1e-9)) as f32;
         }
         last = trainer.train_step(views, rays);
         let secs = start.elapsed().as_secs_f64();
@@ -329,8 +361,12 @@ pub fn run(
             }
             last_window = at_finest.then_some(mean);
         }
-        if stop.time_budget.is_some_and(|b| secs >= b) {
+        if stop.time_budget.is_some_and(|b| spent() >= b) {
             stopped_by = "time budget".into();
+            break;
+        }
+        if stop.until_seconds.is_some_and(|b| spent() >= b) {
+            stopped_by = "phase time".into();
             break;
         }
     }

@@ -26,7 +26,8 @@ pub enum PathLens {
 }
 
 impl PathLens {
-    fn name(self) -> &'static str {
+    /// nerfstudio's name for it (`camera_type`).
+    pub fn name(self) -> &'static str {
         match self {
             PathLens::Perspective => "perspective",
             PathLens::Fisheye => "fisheye",

@@ -9,8 +9,8 @@
 //!   [`distance`] (exact distance transforms).
 //! - [`sam_views`]: SAM ([`crate::sam`]) as the propagation's segmenter.
 //! - [`run`]: `objnerf segment` as a call (checks, propagation, outputs); [`checks`]: the
-//!   self-checks written into its report as warnings; [`output`]: masks,
-//!   point clouds, contact sheets; [`evaluate`]: scores against truth masks.
+//!   self-checks written into its report as warnings; [`output`]: masks, point clouds, contact
+//!   sheets; [`saved`]: a saved run read back; [`evaluate`]: scores against truth masks.
 
 pub mod checks;
 pub mod distance;
@@ -21,6 +21,7 @@ pub mod propagate;
 pub mod regions;
 pub mod run;
 pub mod sam_views;
+pub mod saved;
 pub mod types;
 pub mod view_prompts;
 

@@ -1,8 +1,10 @@
-//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks, memory,
-//! paths, progress reporting, a seeded random generator, order statistics, the self-checks' warnings.
+//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks,
+//! inpainting, memory, paths, progress reporting, a seeded random generator, order statistics,
+//! the self-checks' warnings.
 
 pub mod atomic;
 pub mod digest;
+pub mod inpaint;
 pub mod machine;
 pub mod mask;
 pub mod mem;

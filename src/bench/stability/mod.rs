@@ -250,7 +250,24 @@ pub fn run_suite(
         specs.retain(|s| s.id.contains(only.as_str()));
     }
     let mut prepared: Vec<(Subject, Prepared)> = Vec::new();
-    let mut results = Vec::new();
+    let mut report = StabilityReport {
+        command: command.to_string(),
+        machine,
+        load_average_end: None,
+        git_commit: crate::util::machine::git_commit(),
+        quick: opts.quick,
+        seed: opts.seed,
+        steps: opts.steps,
+        floors: BTreeMap::from([
+            ("miou", score::MIOU_FLOOR),
+            ("obstruction_f1", score::F1_FLOOR),
+            ("psnr_db", score::PSNR_FLOOR),
+            ("chamfer_fraction_of_diagonal", score::CHAMFER_FLOOR),
+        ]),
+        skipped,
+        summary: summarise(&[], 0.0, 0.0),
+        cases: Vec::new(),
+    };
     progress.begin("stability", specs.len() as u64);
     for (i, spec) in specs.iter().enumerate() {
         if !prepared.iter().any(|(s, _)| *s == spec.subject) {
@@ -266,33 +283,17 @@ pub fn run_suite(
             .find(|(s, _)| *s == spec.subject)
             .expect("prepared above")
             .1;
-        results.push(run_case(spec, prep, opts, seg)?);
+        report.cases.push(run_case(spec, prep, opts, seg)?);
+        report.summary = summarise(
+            &report.cases,
+            t0.elapsed().as_secs_f64(),
+            crate::util::machine::cpu_seconds() - c0,
+        );
+        report.load_average_end = crate::util::machine::machine().load_average;
+        // Written after every case: a suite stopped part-way leaves what it measured.
+        report::write_all(&report, &opts.out)?;
         progress.advance(i as u64 + 1, Detail::Item(&spec.id));
     }
     progress.end();
-    let summary = summarise(
-        &results,
-        t0.elapsed().as_secs_f64(),
-        crate::util::machine::cpu_seconds() - c0,
-    );
-    let report = StabilityReport {
-        command: command.to_string(),
-        machine,
-        load_average_end: crate::util::machine::machine().load_average,
-        git_commit: crate::util::machine::git_commit(),
-        quick: opts.quick,
-        seed: opts.seed,
-        steps: opts.steps,
-        floors: BTreeMap::from([
-            ("miou", score::MIOU_FLOOR),
-            ("obstruction_f1", score::F1_FLOOR),
-            ("psnr_db", score::PSNR_FLOOR),
-            ("chamfer_fraction_of_diagonal", score::CHAMFER_FLOOR),
-        ]),
-        skipped,
-        summary,
-        cases: results,
-    };
-    report::write_all(&report, &opts.out)?;
     Ok(report)
 }

@@ -177,7 +177,10 @@ fn run_extract(
         .map(|(name, o)| score_object(scene, prep, name, o, &run))
         .collect::<Result<Vec<_>>>()?;
     // Keep the reports; the models, meshes and renders are large and the scores are in hand.
-    for (from, to) in [("report.json", "report.json"), ("segment/report.json", "segment_report.json")] {
+    for (from, to) in [
+        ("report.json", "report.json"),
+        ("segment/report.json", "segment_report.json"),
+    ] {
         let json = std::fs::read(run.join(from)).map_err(|e| Error::io(run.join(from), e))?;
         crate::util::atomic::write_bytes_atomic(&dir.join(to), &json)?;
     }

@@ -86,6 +86,51 @@ pub fn parse(dir: &Path, npy_bytes: &[u8]) -> Result<Scene> {
     Ok(scene)
 }
 
+/// Write `scene`'s poses as LLFF's `poses_bounds.npy` (one row per image, in the scene's
+/// order; `bounds[i]` = the near and far depth of image i). LLFF keeps a single pinhole focal
+/// length per image (hwf): every camera must be a centred pinhole with fx = fy, as LLFF's own
+/// (`imgs2poses.py`) are.
+pub fn write(scene: &Scene, bounds: &[[f64; 2]], path: &Path) -> Result<()> {
+    let mut values = Vec::with_capacity(scene.images.len() * 17);
+    for (im, b) in scene.images.iter().zip(bounds) {
+        let cam = scene.camera_of(im);
+        let (fx, fy) = cam.focal();
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        let centred = cam.principal_point() == (0.5 * w, 0.5 * h);
+        if (fx - fy).abs() > 1e-9 * fx || !centred || !cam.is_pinhole() {
+            return Err(Error::invalid(format!(
+                "{}: image {} has a camera LLFF cannot store (it keeps one focal length, a centred principal point and no distortion)",
+                path.display(),
+                im.name
+            )));
+        }
+        let gl = im.pose.c2w_opengl();
+        // OpenGL [right, up, back] -> LLFF [down, right, back].
+        for (r, hwf) in gl.iter().zip([h, w, fx]) {
+            values.extend([-r[1], r[0], r[2], r[3], hwf]);
+        }
+        values.extend(b);
+    }
+    let mut header = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 17), }}",
+        scene.images.len()
+    );
+    // The header, with its newline, pads the data to a 64-byte boundary (npy format 1.0).
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    crate::util::write_atomic(path, |w| {
+        w.write_all(b"\x93NUMPY\x01\x00")?;
+        w.write_all(&(header.len() as u16).to_le_bytes())?;
+        w.write_all(header.as_bytes())?;
+        for v in &values {
+            w.write_all(&v.to_le_bytes())?;
+        }
+        Ok(())
+    })
+}
+
 /// The sorted images of `images/`, or of the first `images_*` folder holding exactly `n`.
 fn find_images(dir: &Path, n: usize) -> Result<Vec<PathBuf>> {
     let list = |d: &Path| -> Vec<PathBuf> {

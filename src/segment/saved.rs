@@ -1,5 +1,5 @@
-//! A run of `objnerf segment` (or the `segment/` folder of an `objnerf extract` run), read for
-//! export: its scene, its objects, each view's status per object, the masks and segmented points.
+//! A saved run of `objnerf segment` (or the `segment/` folder of an `objnerf extract` run), read
+//! back by later commands (export, removal): its scene, its objects, each view's status per object, the masks and segmented points.
 
 use crate::error::{Error, Result};
 use crate::scene::formats::{nerfstudio::read_json_file, ply};

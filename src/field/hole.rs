@@ -1,0 +1,192 @@
+//! The hole a removed object leaves: which of its pixels no other view saw, and a fill for them.
+//!
+//! A removal field is trained without the removed objects' pixels; what they hid in one view is
+//! learnt from the views that saw it (the paper's "inferred by other views"). Part of it no view
+//! saw (the ground under the object). [`find_unseen`] marks, per view, the hole pixels whose
+//! surface point (the trained field's depth there) no other view observed: it projects into that
+//! view outside its own hole and nothing nearer stands in the way (its rendered depth agrees).
+//! [`fill_unseen`] gives those pixels targets, so training can go on with them: colour and
+//! disparity inpainted harmonically from what surrounds the unseen part (a smooth continuation
+//! of the ground, never grey fog or floaters), the disparity as a depth target so the filled
+//! surface lies where the surroundings say.
+
+use super::eval::{render_view, Rendered};
+use super::model::Field;
+use super::render::RenderOptions;
+use super::view::View;
+use crate::util::inpaint::inpaint_harmonic;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Relative depth difference under which a view is taken to see the same surface point (the
+/// trained field's depth is accurate to a few voxels, a few percent of the distance).
+pub const SAME_SURFACE_REL: f32 = 0.03;
+/// A hole pixel whose render is less opaque than this has no surface to look for elsewhere: it is
+/// unseen.
+const MIN_SURFACE_ALPHA: f32 = 0.5;
+
+/// One view's hole.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewHole {
+    pub view: String,
+    /// Pixels the removed objects' (dilated) masks cover, at training resolution.
+    pub hole_px: usize,
+    /// Of those, the pixels whose surface no other view observed.
+    pub unseen_px: usize,
+    /// unseen_px / hole_px (0 for a view without a hole).
+    pub unseen_fraction: f64,
+}
+
+/// Per view: the unseen pixels (row-major flags, empty for a view without a hole) and their
+/// counts.
+pub struct Holes {
+    pub unseen: Vec<Vec<bool>>,
+    pub stats: Vec<ViewHole>,
+}
+
+/// A view's hole: the pixels that carry no loss.
+fn hole_of(v: &View) -> Vec<bool> {
+    match &v.loss_mask {
+        Some(m) => m.iter().map(|&k| !k).collect(),
+        None => vec![false; (v.width * v.height) as usize],
+    }
+}
+
+/// Render every view of `views` (colour on black, alpha, depth).
+pub fn render_all(field: &Field, opt: &RenderOptions, views: &[View]) -> Vec<Rendered> {
+    views
+        .iter()
+        .map(|v| render_view(field, opt, v, [0.0; 3]))
+        .collect()
+}
+
+/// Find, in every view of `views` (holes marked by their loss masks; `renders` of each from the
+/// trained field), the hole pixels that none of the first `observers` views (those it trained
+/// on) observed.
+pub fn find_unseen(views: &[View], renders: &[Rendered], observers: usize) -> Holes {
+    let holes: Vec<Vec<bool>> = views.iter().map(hole_of).collect();
+    let unseen: Vec<Vec<bool>> = (0..views.len())
+        .into_par_iter()
+        .map(|i| {
+            if !holes[i].iter().any(|&h| h) {
+                return Vec::new();
+            }
+            let v = &views[i];
+            (0..(v.width * v.height) as usize)
+                .map(|p| {
+                    holes[i][p]
+                        && !seen_elsewhere(i, p as u32, &views[..observers], views, &holes, renders)
+                })
+                .collect()
+        })
+        .collect();
+    let stats = views
+        .iter()
+        .zip(&holes)
+        .zip(&unseen)
+        .map(|((v, h), u)| {
+            let hole_px = h.iter().filter(|&&x| x).count();
+            let unseen_px = u.iter().filter(|&&x| x).count();
+            ViewHole {
+                view: v.name.clone(),
+                hole_px,
+                unseen_px,
+                unseen_fraction: if hole_px > 0 {
+                    unseen_px as f64 / hole_px as f64
+                } else {
+                    0.0
+                },
+            }
+        })
+        .collect();
+    Holes { unseen, stats }
+}
+
+/// Whether the surface point behind hole pixel `p` of view `i` is observed by another of the
+/// `observers` (the first views of `views`).
+fn seen_elsewhere(
+    i: usize,
+    p: u32,
+    observers: &[View],
+    views: &[View],
+    holes: &[Vec<bool>],
+    renders: &[Rendered],
+) -> bool {
+    let r = &renders[i];
+    if r.alpha[p as usize] < MIN_SURFACE_ALPHA {
+        return false;
+    }
+    let (o, d) = views[i].ray(p);
+    let x = o + d * r.depth[p as usize];
+    observers.iter().enumerate().any(|(j, vj)| {
+        if j == i {
+            return false;
+        }
+        let Some((u, w)) = vj.project(x) else {
+            return false;
+        };
+        if u < 0.0 || w < 0.0 || u >= vj.width as f32 || w >= vj.height as f32 {
+            return false;
+        }
+        let q = (w as u32 * vj.width + u as u32) as usize;
+        if holes[j][q] || renders[j].alpha[q] < MIN_SURFACE_ALPHA {
+            return false;
+        }
+        let dist = (x - vj.center()).length();
+        (renders[j].depth[q] - dist).abs() <= SAME_SURFACE_REL * dist
+    })
+}
+
+/// Give every unseen pixel of `views` a target: colour and disparity inpainted from the pixels
+/// around it (the view's own pixels outside its hole, the field's render in the seen part of the
+/// hole), so training may go on with them (their loss mask set, a depth target added). Returns
+/// how many pixels got a target.
+pub fn fill_unseen(views: &mut [View], holes: &Holes, renders: &[Rendered]) -> usize {
+    views
+        .par_iter_mut()
+        .zip(holes.unseen.par_iter().zip(renders.par_iter()))
+        .map(|(v, (unseen, r))| {
+            if !unseen.iter().any(|&u| u) {
+                return 0;
+            }
+            fill_view(v, unseen, r)
+        })
+        .sum()
+}
+
+fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) -> usize {
+    let (w, h) = (v.width as usize, v.height as usize);
+    let hole = hole_of(v);
+    let mut rgb = vec![0.0f32; w * h * 3];
+    let mut disparity = vec![0.0f32; w * h];
+    let mut known_depth = vec![false; w * h];
+    for p in 0..w * h {
+        let c = if hole[p] {
+            r.rgb[p]
+        } else {
+            let px = v.rgba[p];
+            [0, 1, 2].map(|k| px[k] as f32 / 255.0)
+        };
+        rgb[3 * p..3 * p + 3].copy_from_slice(&c);
+        if !unseen[p] && r.alpha[p] >= MIN_SURFACE_ALPHA && r.depth[p] > 0.0 {
+            disparity[p] = 1.0 / r.depth[p];
+            known_depth[p] = true;
+        }
+    }
+    let known: Vec<bool> = unseen.iter().map(|&u| !u).collect();
+    inpaint_harmonic(&mut rgb, &known, w, h, 3);
+    let has_depth = inpaint_harmonic(&mut disparity, &known_depth, w, h, 1);
+    let mask = v.loss_mask.get_or_insert_with(|| vec![true; w * h]);
+    let depth = v.depth.get_or_insert_with(|| vec![0.0; w * h]);
+    let mut filled = 0;
+    for p in (0..w * h).filter(|&p| unseen[p]) {
+        let c = [0, 1, 2].map(|k| (rgb[3 * p + k].clamp(0.0, 1.0) * 255.0).round() as u8);
+        v.rgba[p] = [c[0], c[1], c[2], 255];
+        mask[p] = true;
+        if has_depth && disparity[p] > 0.0 {
+            depth[p] = 1.0 / disparity[p];
+        }
+        filled += 1;
+    }
+    filled
+}
