@@ -43,6 +43,7 @@ impl Stats {
     }
 }
 
+#[allow(unused_imports)] // each example uses a part
 pub use objnerf::util::machine::{cpu_seconds, git_commit, machine, Machine};
 
 /// A Python venv's interpreter for a benchmark's reference side: created (and `packages`

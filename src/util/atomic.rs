@@ -167,10 +167,11 @@ fn remove_stale(parent: &Path, prefix: &str) {
 }
 
 /// An exclusive lock on a destination: the file `.<name>.objnerf-lock` beside it, locked with
-/// the operating system's advisory lock (released by the kernel if the process dies, so a
+/// flock(2), the operating system's advisory lock (released by the kernel if the process dies, so a
 /// killed run never blocks the next) and removed when dropped.
 pub struct DirLock {
-    file: std::fs::File,
+    /// Open for as long as the lock is held: closing it releases the lock.
+    _file: std::fs::File,
     path: PathBuf,
 }
 
@@ -189,9 +190,9 @@ impl DirLock {
                 .write(true)
                 .open(&path)
                 .map_err(|e| Error::io(&path, e))?;
-            match file.try_lock() {
-                Ok(()) => {}
-                Err(std::fs::TryLockError::WouldBlock) => {
+            match try_lock(&file) {
+                Ok(true) => {}
+                Ok(false) => {
                     let mut holder = String::new();
                     let _ = std::io::Read::read_to_string(&mut file, &mut holder);
                     let holder = holder.trim();
@@ -206,16 +207,30 @@ impl DirLock {
                         path.display()
                     )));
                 }
-                Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&path, e)),
+                Err(e) => return Err(Error::io(&path, e)),
             }
             // The previous holder removes the file before unlocking: if it did so between our
             // open and our lock, we hold a lock on a file nobody else can see; try again.
             if same_file(&file, &path) {
                 let _ = file.set_len(0);
                 let _ = write!(file, "{}", std::process::id());
-                return Ok(DirLock { file, path });
+                return Ok(DirLock { _file: file, path });
             }
         }
+    }
+}
+
+/// flock(2) the whole file, exclusive, without waiting: Ok(false) when another holds it.
+fn try_lock(file: &std::fs::File) -> std::io::Result<bool> {
+    use std::os::unix::io::AsRawFd;
+    // SAFETY: flock only reads the descriptor, which `file` keeps open for the call.
+    if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0 {
+        return Ok(true);
+    }
+    let e = std::io::Error::last_os_error();
+    match e.raw_os_error() {
+        Some(libc::EWOULDBLOCK) => Ok(false),
+        _ => Err(e),
     }
 }
 
@@ -229,8 +244,8 @@ fn same_file(file: &std::fs::File, path: &Path) -> bool {
 
 impl Drop for DirLock {
     fn drop(&mut self) {
-        // Remove first, unlock second (closing the file unlocks it).
+        // Remove first, unlock second: closing the file (when `self.file` drops, right after)
+        // releases the lock.
         let _ = std::fs::remove_file(&self.path);
-        let _ = self.file.unlock();
     }
 }

@@ -3,6 +3,7 @@
 //! accuracy against time across the suite.
 
 use super::cases::{ClickKind, Job};
+use super::score::ObjectScores;
 use super::{CaseResult, StabilityReport, Verdict};
 use crate::error::{Error, Result};
 use crate::util::atomic::write_bytes_atomic;
@@ -100,7 +101,7 @@ pub fn markdown(r: &StabilityReport) -> String {
         m,
         "\n| case | group | strength | verdict | mIoU | F1 | PSNR | Chamfer % | warnings | s | CPU s | MiB |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
-    let none = super::score::ObjectScores::default();
+    let none = ObjectScores::default();
     for c in r.cases.iter().filter(|c| is_click(c).is_none()) {
         // A refused case has no scores: one row all the same.
         let refused = c.objects.is_empty().then_some((0, &none));
@@ -151,13 +152,13 @@ pub fn markdown(r: &StabilityReport) -> String {
 }
 
 /// Mean over a case's objects of a per-object figure.
-fn mean_of(
-    c: &CaseResult,
-    get: impl Fn(&super::score::ObjectScores) -> Option<f64>,
-) -> Option<f64> {
+fn mean_of(c: &CaseResult, get: impl Fn(&ObjectScores) -> Option<f64>) -> Option<f64> {
     let v: Vec<f64> = c.objects.iter().filter_map(get).collect();
     (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
 }
+
+/// One figure of an object's scores.
+type Figure = fn(&ObjectScores) -> Option<f64>;
 
 const GROUPS: [&str; 6] = [
     "views",
@@ -203,11 +204,7 @@ fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn st
                 .x_desc("strength")
                 .y_desc("success rate")
                 .draw()?;
-            let series: [(
-                &str,
-                RGBColor,
-                fn(&super::score::ObjectScores) -> Option<f64>,
-            ); 2] = [
+            let series: [(&str, RGBColor, Figure); 2] = [
                 ("segment: views with mask IoU >= floor", BLUE, |o| {
                     o.segment_success
                 }),
@@ -266,11 +263,7 @@ fn accuracy_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn s
         let root = SVGBackend::with_string(&mut svg, (1400, 520)).into_drawing_area();
         root.fill(&WHITE)?;
         let areas = root.split_evenly((1, 2));
-        let panels: [(
-            &str,
-            fn(&super::score::ObjectScores) -> Option<f64>,
-            (f64, f64),
-        ); 2] = [
+        let panels: [(&str, Figure, (f64, f64)); 2] = [
             ("mask mIoU against case time", |o| o.miou, (0.0, 1.0)),
             (
                 "object PSNR (dB) against case time",
