@@ -19,6 +19,10 @@ use serde::Serialize;
 /// training views, not with a fixed figure, keeps image noise and fine texture (which lower
 /// both alike) from reading as failure.
 pub const MAX_HELDOUT_GAP_DB: f64 = 4.0;
+/// ... unless the held-out PSNR is this high anyway: fitting the training views better than
+/// new ones is what any field does from few views, and a field that still scores this on new
+/// views is a usable one (the stability suite's truth floor is 16 dB on the same measure).
+pub const GAP_CEILING_DB: f64 = 17.0;
 /// Held-out PSNR under this is a wrong object whatever the training views score (a field on
 /// white scores about 10 dB with nothing in it).
 pub const MIN_HELDOUT_PSNR: f64 = 13.0;
@@ -170,7 +174,7 @@ pub fn check_field(
                     "on views kept out of training ({names}) the field scores {p:.1} dB around the object: it does not reproduce the object (inaccurate poses or masks, too few views)"
                 ),
             ));
-        } else if let Some(g) = gap.filter(|g| *g > MAX_HELDOUT_GAP_DB) {
+        } else if let Some(g) = gap.filter(|g| *g > MAX_HELDOUT_GAP_DB && p < GAP_CEILING_DB) {
             out.push(warn(
                 "heldout_gap",
                 g,
@@ -243,6 +247,8 @@ mod tests {
         // Noise lowers training and held-out views alike: no warning.
         assert!(codes(&good, &held(15.0, 16.0, 0.02)).is_empty());
         assert_eq!(codes(&good, &held(14.0, 22.0, 0.02)), ["heldout_gap"]);
+        // Few views: training views fit far better, but new views are still good.
+        assert!(codes(&good, &held(18.5, 27.0, 0.02)).is_empty());
         assert_eq!(codes(&good, &held(10.0, 11.0, 0.02)), ["heldout_psnr_low"]);
         assert_eq!(codes(&good, &held(20.0, 22.0, 0.5)), ["floaters"]);
         assert_eq!(

@@ -156,12 +156,13 @@ pub fn propagate(
     })
 }
 
-/// How far the segmenter's alternatives for a lone click agree with the clicked mask: the
-/// second-lowest IoU among them, so that one alternative leaving the object (a click near an
-/// edge moved outwards) is not enough, while a click between a part and the whole, where
-/// several answers flip, is caught. None when there are fewer than two alternatives (several
-/// clicks, a box, or a segmenter without alternatives).
-fn click_agreement(
+/// How far the segmenter's alternatives for a lone click agree with the clicked mask: the lower
+/// of its IoU with the refined answer (a flip between part and whole) and the IoU that most of
+/// the moved clicks reach (the second-highest of four: three of them leaving the object means
+/// the click is on something smaller than a click's slack, while one or two leaving is just a
+/// click near an edge, which is harmless). None without alternatives (several clicks, a box,
+/// or a segmenter that gives none).
+pub fn click_agreement(
     scene: &Scene,
     prompt: &ObjectPrompt,
     mask: &GrayImage,
@@ -170,13 +171,15 @@ fn click_agreement(
     if prompt.points.len() != 1 || prompt.bbox.is_some() {
         return Ok(None);
     }
-    let mut ious: Vec<f64> = seg
-        .alternatives(scene, prompt.view, &prompt.points)?
-        .iter()
-        .map(|a| iou(mask, a))
-        .collect();
-    ious.sort_by(|a, b| a.total_cmp(b));
-    Ok(ious.get(1).copied())
+    let alts = seg.alternatives(scene, prompt.view, &prompt.points)?;
+    let refined = alts.refined.as_ref().map(|r| iou(mask, r));
+    let mut moved: Vec<f64> = alts.moved.iter().map(|m| iou(mask, m)).collect();
+    moved.sort_by(|a, b| b.total_cmp(a));
+    let most_moved = (moved.len() >= 2).then(|| moved[1]);
+    Ok(match (refined, most_moved) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    })
 }
 
 /// SAM's mask without stray islands and pin-holes (see [`super::regions`]).

@@ -2,14 +2,13 @@
 //! decoded once and embedded once (the embedding cache makes the k objects of a run, and later
 //! runs, share the encoder pass).
 
-use super::types::{PointPrompt, ViewMask, ViewSegmenter};
+use super::types::{ClickAlternatives, PointPrompt, ViewMask, ViewSegmenter};
 use crate::error::Result;
 use crate::sam::zoom::ZoomOptions;
 use crate::sam::{Embedding, Point, Prompts, Segmenter};
 use crate::scene::io::read_rgb;
 use crate::scene::Scene;
 use crate::util::{Detail, Progress};
-use image::GrayImage;
 use std::sync::Arc;
 
 pub struct SamViews<'a> {
@@ -142,12 +141,12 @@ impl ViewSegmenter for SamViews<'_> {
         scene: &Scene,
         view: usize,
         click: &[PointPrompt],
-    ) -> Result<Vec<GrayImage>> {
+    ) -> Result<ClickAlternatives> {
         let emb = self.embedding(scene, view)?;
         let base = sam_prompts(click, None);
         let first = self.seg.predict_allow_empty(&emb, &base)?;
         self.decoder_seconds += first.decoder_seconds;
-        let mut out = Vec::new();
+        let mut out = ClickAlternatives::default();
         if !first.is_empty() {
             let again = Prompts {
                 mask_input: Some(first.low_res_input()),
@@ -155,7 +154,7 @@ impl ViewSegmenter for SamViews<'_> {
             };
             let m = self.seg.predict_allow_empty(&emb, &again)?;
             self.decoder_seconds += m.decoder_seconds;
-            out.push(m.to_image());
+            out.refined = Some(m.to_image());
         }
         let (w, h) = (emb.width as f64, emb.height as f64);
         let step = (CLICK_JITTER * w.max(h)).max(2.0);
@@ -174,7 +173,7 @@ impl ViewSegmenter for SamViews<'_> {
                 .seg
                 .predict_allow_empty(&emb, &sam_prompts(&moved, None))?;
             self.decoder_seconds += m.decoder_seconds;
-            out.push(m.to_image());
+            out.moved.push(m.to_image());
         }
         Ok(out)
     }

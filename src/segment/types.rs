@@ -25,17 +25,25 @@ pub trait ViewSegmenter {
         bbox: Option<[f64; 4]>,
     ) -> Result<ViewMask>;
 
-    /// Other masks the segmenter could as well have given for a lone click in `view` (SAM:
-    /// its answer refined by its own logits, and the click moved by a few pixels), to tell
-    /// whether the click is ambiguous (part or whole; an edge). None by default.
+    /// Other masks the segmenter could as well have given for a lone click in `view`, to tell
+    /// whether the click is ambiguous. None by default.
     fn alternatives(
         &mut self,
         _scene: &Scene,
         _view: usize,
         _click: &[PointPrompt],
-    ) -> Result<Vec<GrayImage>> {
-        Ok(vec![])
+    ) -> Result<ClickAlternatives> {
+        Ok(ClickAlternatives::default())
     }
+}
+
+/// A segmenter's other answers to one click: its own answer refined (fed back as a prompt:
+/// where the choice between part and whole is close, it flips) and the click moved a little
+/// in several directions.
+#[derive(Clone, Debug, Default)]
+pub struct ClickAlternatives {
+    pub refined: Option<GrayImage>,
+    pub moved: Vec<GrayImage>,
 }
 
 /// A segmenter's answer: the mask at image size (0/255) and the model's score. (No logits: at
@@ -167,8 +175,8 @@ pub struct ObjectSegmentation {
     pub views: Vec<ViewResult>,
     /// D: indices into `scene.points` of the object's points.
     pub points: Vec<usize>,
-    /// The second-lowest IoU between the clicked view's mask and the segmenter's alternatives
-    /// for the same click (None: fewer than two were given, e.g. several clicks or a box).
+    /// How far the segmenter's alternatives for the click agree with its mask (see
+    /// `propagate::click_agreement`; None: no alternatives, e.g. several clicks or a box).
     pub click_agreement: Option<f64>,
 }
 

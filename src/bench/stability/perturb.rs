@@ -20,8 +20,7 @@ use std::path::Path;
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Perturbation {
     None,
-    /// Keep this many views, evenly spaced in the scene's order (view 0, the clicked one,
-    /// always among them).
+    /// Keep this many views, evenly spaced in the scene's order from the clicked one.
     Views {
         count: usize,
     },
@@ -67,15 +66,23 @@ impl Perturbation {
     }
 }
 
-/// `scene` perturbed by `p` (seeded by `seed`); new images go to `dir/images/`.
-pub fn perturb(scene: &Scene, p: Perturbation, seed: u64, dir: &Path) -> Result<Scene> {
+/// `scene` perturbed by `p` (seeded by `seed`); new images go to `dir/images/`. `anchor` (the
+/// clicked view) stays when views are dropped.
+pub fn perturb(
+    scene: &Scene,
+    p: Perturbation,
+    seed: u64,
+    anchor: usize,
+    dir: &Path,
+) -> Result<Scene> {
     let mut out = match p {
         Perturbation::Views { count } => {
             let n = scene.images.len();
             if count == 0 || count > n {
                 return Err(Error::invalid(format!("cannot keep {count} of {n} views")));
             }
-            let keep: Vec<usize> = (0..count).map(|j| j * n / count).collect();
+            let mut keep: Vec<usize> = (0..count).map(|j| (anchor + j * n / count) % n).collect();
+            keep.sort_unstable();
             scene.subset(&keep)
         }
         Perturbation::PoseNoise { degrees } => pose_noise(scene, degrees, seed),

@@ -98,7 +98,14 @@ pub fn run_case(
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     reset_peak_rss();
     let (t0, c0) = (Instant::now(), cpu_seconds());
-    let scene = perturb(&prep.scene, spec.perturbation, opts.seed, &dir)?;
+    let anchor = match &spec.job {
+        Job::Extract { objects } => objects.first(),
+        Job::Click { .. } => None,
+    }
+    .and_then(|o| prep.clicks.get(o))
+    .and_then(|(view, _)| prep.scene.find_image(view).ok())
+    .unwrap_or(0);
+    let scene = perturb(&prep.scene, spec.perturbation, opts.seed, anchor, &dir)?;
     let outcome = match &spec.job {
         Job::Extract { objects } => run_extract(&scene, prep, objects, opts, seg, &dir),
         Job::Click { kind, index } => run_click(&scene, prep, *kind, *index, opts, seg),
