@@ -20,7 +20,7 @@ pub mod score;
 
 use crate::error::{Error, Result};
 use crate::sam::Segmenter;
-use crate::util::{Detail, Progress, Warning};
+use crate::util::{Detail, Progress, Stage, Warning};
 use cases::{CaseSpec, Job, Subject};
 use run::{prepare_demo, prepare_lego, run_case, subject_dir, Prepared};
 use score::ObjectScores;
@@ -86,11 +86,18 @@ impl Verdict {
 }
 
 /// One object's verdict from its scores and the warnings about it (or about the whole scene).
+/// A warning about a stage the truth cannot score (lego's mesh: there is no true mesh) counts
+/// neither way: it can be neither confirmed nor called a false alarm.
 fn object_verdict(s: &ObjectScores, warnings: &[Warning]) -> Verdict {
     let bad = s.segment_bad() || s.field_bad() == Some(true);
+    let scored = |stage: Stage| match stage {
+        Stage::Scene | Stage::Segment => true,
+        Stage::Field => s.psnr.is_some() || s.chamfer.is_some(),
+        Stage::Mesh => s.chamfer.is_some(),
+    };
     let flagged = warnings
         .iter()
-        .any(|w| w.object.as_deref().is_none_or(|o| o == s.object));
+        .any(|w| w.object.as_deref().is_none_or(|o| o == s.object) && scored(w.stage));
     match (bad, flagged) {
         (false, false) => Verdict::Ok,
         (false, true) => Verdict::FalseAlarm,
