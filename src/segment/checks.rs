@@ -185,7 +185,11 @@ fn median_point(scene: &Scene, points: &[usize]) -> Option<glam::DVec3> {
     let med = |f: fn(glam::DVec3) -> f64| {
         crate::util::stats::median(points.iter().map(|&p| f(scene.points[p].xyz)).collect())
     };
-    Some(glam::DVec3::new(med(|p| p.x)?, med(|p| p.y)?, med(|p| p.z)?))
+    Some(glam::DVec3::new(
+        med(|p| p.x)?,
+        med(|p| p.y)?,
+        med(|p| p.z)?,
+    ))
 }
 
 /// The widest gap between angles (degrees) around the circle.

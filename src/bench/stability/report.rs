@@ -2,8 +2,9 @@
 //! summarises) and two SVG charts: success rate against perturbation strength per stage, and
 //! accuracy against time across the suite.
 
+use super::cases::Subject;
 use super::cases::{ClickKind, Job};
-use super::score::ObjectScores;
+use super::score::{ObjectScores, MIOU_FLOOR, PSNR_FLOOR};
 use super::{CaseResult, StabilityReport, Verdict};
 use crate::error::{Error, Result};
 use crate::util::atomic::write_bytes_atomic;
@@ -179,9 +180,10 @@ fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn st
         let areas = root.split_evenly((2, 3));
         let baseline = cases.iter().find(|c| c.spec.id == "baseline");
         for (area, group) in areas.iter().zip(GROUPS) {
+            // The demo's cases (lego's are in the table).
             let mut pts: Vec<(f64, &CaseResult)> = cases
                 .iter()
-                .filter(|c| c.spec.group == group)
+                .filter(|c| c.spec.group == group && matches!(c.spec.subject, Subject::Demo(_)))
                 .map(|c| (c.spec.strength, c))
                 .collect();
             if let Some(b) = baseline {
@@ -193,13 +195,17 @@ fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn st
                 pts.push((s, b));
             }
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let x1 = pts.iter().map(|p| p.0).fold(1.0f64, f64::max) * 1.1;
+            let x1 = match pts.iter().map(|p| p.0).fold(0.0f64, f64::max) {
+                x if x > 0.0 => x * 1.1,
+                _ => 1.0,
+            };
+            // Room above 1 for the legend.
             let mut c = ChartBuilder::on(area)
                 .caption(group, ("sans-serif", 18))
                 .margin(12)
                 .x_label_area_size(34)
                 .y_label_area_size(44)
-                .build_cartesian_2d(0.0..x1, 0.0..1.05)?;
+                .build_cartesian_2d(0.0..x1, -0.02..1.35)?;
             c.configure_mesh()
                 .x_desc("strength")
                 .y_desc("success rate")
@@ -237,7 +243,7 @@ fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn st
             c.configure_series_labels()
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
-                .position(SeriesLabelPosition::LowerLeft)
+                .position(SeriesLabelPosition::UpperRight)
                 .draw()?;
         }
         root.present()?;
@@ -263,16 +269,22 @@ fn accuracy_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn s
         let root = SVGBackend::with_string(&mut svg, (1400, 520)).into_drawing_area();
         root.fill(&WHITE)?;
         let areas = root.split_evenly((1, 2));
-        let panels: [(&str, Figure, (f64, f64)); 2] = [
-            ("mask mIoU against case time", |o| o.miou, (0.0, 1.0)),
+        let panels: [(&str, Figure, (f64, f64), f64); 2] = [
+            (
+                "mask mIoU against case time",
+                |o| o.miou,
+                (0.0, 1.0),
+                MIOU_FLOOR,
+            ),
             (
                 "object PSNR (dB) against case time",
                 |o| o.psnr,
-                (10.0, 30.0),
+                (8.0, 26.0),
+                PSNR_FLOOR,
             ),
         ];
         let t1 = cases.iter().map(|c| c.seconds).fold(1.0f64, f64::max) * 1.1;
-        for (area, (title, get, (y0, y1))) in areas.iter().zip(panels) {
+        for (area, (title, get, (y0, y1), floor)) in areas.iter().zip(panels) {
             let mut c = ChartBuilder::on(area)
                 .caption(title, ("sans-serif", 18))
                 .margin(12)
@@ -283,6 +295,12 @@ fn accuracy_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn s
                 .x_desc("wall seconds (shared 2-core machine)")
                 .y_desc(title.split(" against").next().unwrap_or(""))
                 .draw()?;
+            c.draw_series(LineSeries::new(
+                [(0.0, floor), (t1, floor)],
+                BLACK.mix(0.5).stroke_width(1),
+            ))?
+            .label("floor")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.5)));
             for v in [
                 Verdict::Ok,
                 Verdict::FalseAlarm,
