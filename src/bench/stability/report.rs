@@ -4,8 +4,8 @@
 
 use super::cases::Subject;
 use super::cases::{ClickKind, Job};
+use super::outcome::{CaseResult, StabilityReport, Verdict};
 use super::score::{ObjectScores, MIOU_FLOOR, PSNR_FLOOR};
-use super::{CaseResult, StabilityReport, Verdict};
 use crate::error::{Error, Result};
 use crate::util::atomic::write_bytes_atomic;
 use plotters::prelude::*;

@@ -3,9 +3,9 @@
 //! for a click), score against the truth, and classify.
 
 use super::cases::{CaseSpec, ClickKind, Job, Subject};
+use super::outcome::{classify, CaseResult, StabilityOptions, Verdict};
 use super::perturb::perturb;
 use super::score::{score_field, score_masks, score_mesh, ObjectScores, ScoredView, Truth};
-use super::{classify, CaseResult, StabilityOptions, Verdict};
 use crate::demo::{read_truth, write_demo_scene, DemoOptions, Variant};
 use crate::error::{Error, Result};
 use crate::pipeline::{extract, ExtractOptions};
