@@ -143,13 +143,22 @@ fn killed_runs_leave_nothing_half_written_and_a_second_run_is_refused() {
     println!("a whole run takes {:.1} s", full.as_secs_f64());
 
     // 20 kills at seeded random moments over a run's length, every other one into an empty
-    // place; after each, the output is a complete run or absent (never partial), and the same
-    // command run again completes.
+    // place and the others over a complete run (--overwrite replaces it); after each, the
+    // output is a complete run or absent (never partial), and the same command run again
+    // completes.
     let mut rng = objnerf::util::Rng::new(18);
     let mut outcomes = Vec::new();
     for k in 0..20 {
         if k % 2 == 0 && out.exists() {
             std::fs::remove_dir_all(&out).unwrap();
+        }
+        if k % 2 == 1 && !out.exists() {
+            let run = spawn(&args, &out).wait_with_output().unwrap();
+            assert!(
+                run.status.success(),
+                "{}",
+                String::from_utf8_lossy(&run.stderr)
+            );
         }
         let at = Duration::from_secs_f64(full.as_secs_f64() * rng.range(0.02, 0.98));
         let mut child = spawn(&args, &out);
@@ -166,7 +175,7 @@ fn killed_runs_leave_nothing_half_written_and_a_second_run_is_refused() {
             at.as_secs_f64(),
             match (finished, present) {
                 (true, _) => "had finished",
-                (false, true) => "output whole",
+                (false, true) => "a whole output",
                 (false, false) => "no output",
             }
         ));
