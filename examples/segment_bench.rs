@@ -215,6 +215,7 @@ fn oracle(
         name: name.to_string(),
         views,
         points: vec![],
+        click_agreement: None,
     })
 }
 

@@ -2,6 +2,7 @@
 //! command parses its arguments into the library's typed options, calls the library, and prints
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
+mod bench;
 mod camera_path;
 mod edit;
 mod export;
@@ -71,6 +72,11 @@ enum Command {
     RenderEdit(edit::RenderEditCmd),
     /// Write an edit file for an extract run: every object in place over a background.
     EditTemplate(edit::EditTemplateCmd),
+    /// Benchmark suites scored against truth (`bench stability`).
+    Bench {
+        #[command(subcommand)]
+        suite: bench::BenchCmd,
+    },
     /// Export a run or a scene for other tools.
     Export {
         #[command(subcommand)]
@@ -114,7 +120,21 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::RenderEdit(cmd) => cmd.run(),
         Command::EditTemplate(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
+        Command::Bench { suite } => suite.run(),
         Command::CameraPath(cmd) => cmd.run(),
+    }
+}
+
+/// The self-checks that tripped, last thing a command prints (stdout, so they stay beside the
+/// summary they qualify), or a line saying every check passed.
+fn print_warnings(warnings: &[objnerf::util::Warning]) {
+    if warnings.is_empty() {
+        println!("self-checks: all passed");
+        return;
+    }
+    println!("self-checks: {} warning(s)", warnings.len());
+    for w in warnings {
+        println!("  warning {}", w.line());
     }
 }
 

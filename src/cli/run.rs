@@ -1,9 +1,9 @@
 //! `objnerf extract` (click to mesh) and `objnerf demo` (the same on the built-in scene, scored
 //! against its truth).
 
-use super::print_json;
 use super::progress::Bars;
 use super::segment::{prompts_in_order, ClickArgs};
+use super::{print_json, print_warnings};
 use clap::{ArgMatches, Args};
 use objnerf::field::DepthMode;
 use objnerf::mesh::from_field::FieldMeshOptions;
@@ -94,6 +94,7 @@ impl ExtractCmd {
             print_json(&report);
         }
         print_summary(&report);
+        print_warnings(&report.warnings);
         Ok(())
     }
 }
@@ -204,6 +205,7 @@ impl DemoCmd {
             "open {} in Blender (File > Import > glTF 2.0) or any glTF viewer",
             job.report.out.join("mesh.glb").display()
         );
+        print_warnings(&job.report.warnings);
         Ok(())
     }
 }

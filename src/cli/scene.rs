@@ -4,7 +4,7 @@ use super::print_json;
 use super::progress::Bars;
 use clap::Args;
 use objnerf::demo::edit::write_edit_truth;
-use objnerf::demo::{parse_size, write_demo_scene, DemoLayout, DemoOptions};
+use objnerf::demo::{parse_size, write_demo_scene, DemoLayout, DemoOptions, Variant};
 use objnerf::edit::{load_edit, EditFile};
 use objnerf::scene::camera_path::{CameraPath, PathFrame};
 use objnerf::scene::info::scene_info;
@@ -97,6 +97,7 @@ impl SfmCmd {
                 report.seconds,
                 report.model_dir.display()
             );
+            super::print_warnings(&report.warnings);
         }
         Ok(())
     }
@@ -130,6 +131,11 @@ pub struct DemoSceneCmd {
     /// Fraction of 3D points given one wrong observation.
     #[arg(long, default_value_t = DemoOptions::default().outlier_fraction)]
     outliers: f64,
+    /// A harder version of the scene, about the mug: out-of-frame (every third view cuts it
+    /// in half), occluded (two panels hide it from one side), textureless (plain, few
+    /// points), distractor (an identical mug beside it).
+    #[arg(long, default_value_t = DemoOptions::default().variant)]
+    variant: Variant,
     /// Replace the output folder if it exists.
     #[arg(long)]
     overwrite: bool,
@@ -180,6 +186,7 @@ impl DemoSceneCmd {
             noise_px: self.noise,
             outlier_fraction: self.outliers,
             overwrite: self.overwrite,
+            variant: self.variant,
             layout: self.layout,
         };
         let s = write_demo_scene(&opts, &self.out)?;

@@ -1,7 +1,7 @@
 //! `objnerf segment`, and the clicks it shares with `extract`.
 
-use super::print_json;
 use super::progress::Bars;
+use super::{print_json, print_warnings};
 use clap::{ArgMatches, Args};
 use objnerf::models::ModelsDir;
 use objnerf::sam::prompt::parse_point;
@@ -159,6 +159,7 @@ impl SegmentCmd {
             report.encoder_runs,
             report.timings.decoder
         );
+        print_warnings(&report.warnings);
         Ok(())
     }
 }

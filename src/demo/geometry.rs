@@ -5,7 +5,7 @@
 
 use glam::{DMat3, DVec3};
 
-/// Object names, in id order (id = index).
+/// The standard scene's object names, in id order (id = index; variants add objects after them).
 pub const OBJECT_NAMES: [&str; 4] = ["mug", "sphere", "box", "torus"];
 /// Surface ids past the objects (objects take ids 0, 1, ... in their order).
 pub const FLOOR: u8 = 250;
@@ -118,6 +118,8 @@ pub struct Object {
     /// Local axis-aligned bounds (exact for every shape).
     pub local_min: DVec3,
     pub local_max: DVec3,
+    /// One plain colour instead of its texture (the textureless variant).
+    pub plain: bool,
 }
 
 fn capped_cylinder(p: DVec3, r: f64, z0: f64, z1: f64) -> f64 {
@@ -163,6 +165,7 @@ impl Object {
             place,
             local_min,
             local_max,
+            plain: false,
         }
     }
 

@@ -33,9 +33,11 @@ pub mod mesh;
 pub mod render;
 pub mod texture;
 pub mod tracks;
+pub mod variants;
 pub mod writer;
 
 pub use geometry::{World, OBJECT_NAMES};
+pub use variants::Variant;
 pub use writer::{read_truth, truth_masks, ObjectTruth};
 
 use crate::error::{Error, Result};
@@ -59,6 +61,8 @@ pub struct DemoOptions {
     pub outlier_fraction: f64,
     /// Replace `out` if it exists and is not empty.
     pub overwrite: bool,
+    /// A harder version of the scene ([`Variant`]).
+    pub variant: Variant,
     /// Where the cameras stand.
     pub layout: DemoLayout,
 }
@@ -103,6 +107,7 @@ impl Default for DemoOptions {
             noise_px: 0.0,
             outlier_fraction: 0.0,
             overwrite: false,
+            variant: Variant::Standard,
             layout: DemoLayout::Ring,
         }
     }
@@ -173,22 +178,24 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
     let start = Instant::now();
     let dir = AtomicDir::new(out, opts.overwrite)?;
     let root = dir.path().to_path_buf();
-    let world = World::demo();
+    let world = opts.variant.world();
     let tex = texture::Textures::new(opts.seed);
     let mut rng = Rng::new(opts.seed);
     let cam = render::demo_camera(opts.width, opts.height);
-    let poses = match opts.layout {
+    let mut poses = match opts.layout {
         DemoLayout::Ring => render::demo_poses(opts.views, &mut rng),
         DemoLayout::Forward => render::forward_poses(opts.views, &mut rng),
     };
+    opts.variant.adjust_poses(&world, &cam, &mut poses);
     let names: Vec<String> = (0..opts.views).map(view_name).collect();
+    let object_names: Vec<&str> = world.objects.iter().map(|o| o.name).collect();
 
     // Views one after another, each view's rows in parallel.
     let mut ids = Vec::with_capacity(opts.views);
     let mut bounds = Vec::with_capacity(opts.views);
     for (name, pose) in names.iter().zip(&poses) {
         let r = render::render_view(&world, &tex, &cam, pose);
-        writer::write_view(&root, name, opts.width, opts.height, &r)?;
+        writer::write_view(&root, name, (opts.width, opts.height), &r, &object_names)?;
         for set in removal_sets(world.objects.len()) {
             let rgb = render::render_without(&world, &tex, &cam, pose, &set, &r);
             let names: Vec<&str> = set.iter().map(|&k| world.objects[k].name).collect();
@@ -262,17 +269,24 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
             };
             visible.insert(names[v].clone(), frac);
         }
-        let mask: Vec<bool> = ids[0].iter().map(|&id| id == k as u8).collect();
-        let click = writer::farthest_interior(&mask, w, h).ok_or_else(|| {
-            Error::invalid(format!(
-                "object '{}' is not visible in view 0 at {}x{}",
-                obj.name, opts.width, opts.height
-            ))
-        })?;
+        // The click: in view 0, or for an object it does not see, the first view that does.
+        let (view, click) = ids
+            .iter()
+            .enumerate()
+            .find_map(|(v, ids)| {
+                let mask: Vec<bool> = ids.iter().map(|&id| id == k as u8).collect();
+                writer::farthest_interior(&mask, w, h).map(|c| (v, c))
+            })
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "object '{}' is not visible in any view at {}x{}",
+                    obj.name, opts.width, opts.height
+                ))
+            })?;
         let (lo, hi) = obj.world_bbox();
         objects.push(ObjectTruth {
             name: obj.name.to_string(),
-            view: names[0].clone(),
+            view: names[view].clone(),
             click,
             visible,
             bbox_min: lo.to_array(),

@@ -109,6 +109,7 @@ impl Textures {
                 let obj = &world.objects[id as usize];
                 let p = obj.place.to_local(hit.p);
                 match obj.shape {
+                    _ if obj.plain => DVec3::new(0.86, 0.52, 0.42),
                     Shape::Mug { .. } => self.mug(p),
                     Shape::Sphere { radius } => self.sphere(p, radius),
                     Shape::Cuboid { .. } => self.cuboid(p),

@@ -15,6 +15,8 @@ use rayon::prelude::*;
 const SAMPLES_PER_OBJECT: usize = 700;
 const SAMPLES_FLOOR: usize = 700;
 const SAMPLES_BACKDROP: usize = 1000;
+/// A plain (untextured) object gets this many times fewer points: SIFT finds little on it.
+const PLAIN_DIVISOR: usize = 20;
 /// Unmatched features per image, as a fraction of its matched ones.
 const UNMATCHED_FRACTION: f64 = 0.25;
 /// A point counts as seen when the first hit along the camera ray is within this of it (m).
@@ -47,8 +49,18 @@ fn sample_surface(
 ) -> Vec<Sample> {
     let w = cam.width as usize;
     let mut out = Vec::new();
-    let mut classes: Vec<(u8, usize)> = (0..world.objects.len())
-        .map(|i| (i as u8, SAMPLES_PER_OBJECT))
+    let mut classes: Vec<(u8, usize)> = world
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let n = if o.plain {
+                SAMPLES_PER_OBJECT / PLAIN_DIVISOR
+            } else {
+                SAMPLES_PER_OBJECT
+            };
+            (i as u8, n)
+        })
         .collect();
     classes.push((FLOOR, SAMPLES_FLOOR));
     classes.push((BACKDROP, SAMPLES_BACKDROP));

@@ -15,7 +15,8 @@ use std::path::Path;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectTruth {
     pub name: String,
-    /// The view the suggested click is in (view 0's image name).
+    /// The view the suggested click is in (view 0's image name; for an object view 0 does not
+    /// see, the first view that does).
     pub view: String,
     /// The interior point of the object's mask in `view` farthest from its edge, in pixel
     /// coordinates (pixel centres at +0.5, DESIGN.md §2).
@@ -60,8 +61,14 @@ pub fn write_truth(path: &Path, objects: &[ObjectTruth]) -> Result<()> {
 }
 
 /// Write one view: `images/<name>`, `truth/depth/<stem>.{png,exr}` and
-/// `truth/masks/<object>/<name>` for every object.
-pub fn write_view(root: &Path, name: &str, w: u32, h: u32, r: &ViewRender) -> Result<()> {
+/// `truth/masks/<object>/<name>` for every object (`objects`: names in id order).
+pub fn write_view(
+    root: &Path,
+    name: &str,
+    (w, h): (u32, u32),
+    r: &ViewRender,
+    objects: &[&str],
+) -> Result<()> {
     let stem = Path::new(name)
         .file_stem()
         .map(|s| s.to_string_lossy().to_string())
@@ -87,7 +94,7 @@ pub fn write_view(root: &Path, name: &str, w: u32, h: u32, r: &ViewRender) -> Re
         },
     )?;
 
-    for (i, obj) in super::OBJECT_NAMES.iter().enumerate() {
+    for (i, obj) in objects.iter().enumerate() {
         let mask = GrayImage::from_fn(w, h, |x, y| {
             Luma([if r.ids[(y * w + x) as usize] == i as u8 {
                 255

@@ -6,7 +6,8 @@
 //! size, [`rays`] keeps the rays that meet the box, [`depth`] adds optional depth targets,
 //! [`session`] sizes the grid and runs [`train`], which fits the [`model::Field`] with sparse
 //! per-voxel Adam; [`render`] marches rays through it (forward and hand-written backward),
-//! [`eval`] renders and scores views, [`holdout`] splits views and measures depth error, [`io`]
+//! [`eval`] renders and scores views, [`checks`] are the self-checks of a trained field,
+//! [`holdout`] splits views and measures depth error, [`io`]
 //! saves and loads the model file, and [`fit`] is training on a scene as one call.
 //!
 //! Measurements (SH degree, batch and step sweeps, headline runs on lego, the Pareto sweep, the
@@ -39,6 +40,7 @@
 //!   error squared is too small to matter next to the colour loss.
 
 pub mod bounds;
+pub mod checks;
 pub mod depth;
 pub mod eval;
 pub mod fit;

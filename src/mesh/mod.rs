@@ -1,6 +1,7 @@
 //! Meshes out of object fields: marching cubes, cleanup (welded by construction, small pieces
 //! removed, normals), and writers for glTF binary, PLY and OBJ.
 
+pub mod checks;
 pub mod frame;
 pub mod from_field;
 pub mod gltf;
@@ -85,9 +86,9 @@ impl Mesh {
         }
     }
 
-    /// Remove connected pieces with fewer than `min_fraction` of the largest piece's triangles.
-    /// Returns the number of pieces removed.
-    pub fn remove_small_components(&mut self, min_fraction: f64) -> usize {
+    /// The connected piece of every triangle, as the id of a representative vertex (pieces are
+    /// joined through shared vertices).
+    pub fn triangle_components(&self) -> Vec<u32> {
         let n = self.positions.len();
         let mut parent: Vec<u32> = (0..n as u32).collect();
         fn find(p: &mut [u32], mut x: u32) -> u32 {
@@ -106,12 +107,28 @@ impl Mesh {
                 }
             }
         }
-        let mut count = std::collections::HashMap::<u32, usize>::new();
-        let roots: Vec<u32> = self
-            .triangles
+        self.triangles
             .iter()
             .map(|t| find(&mut parent, t[0]))
-            .collect();
+            .collect()
+    }
+
+    /// Triangles per connected piece, largest first.
+    pub fn component_sizes(&self) -> Vec<usize> {
+        let mut count = std::collections::HashMap::<u32, usize>::new();
+        for r in self.triangle_components() {
+            *count.entry(r).or_default() += 1;
+        }
+        let mut sizes: Vec<usize> = count.into_values().collect();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        sizes
+    }
+
+    /// Remove connected pieces with fewer than `min_fraction` of the largest piece's triangles.
+    /// Returns the number of pieces removed.
+    pub fn remove_small_components(&mut self, min_fraction: f64) -> usize {
+        let roots = self.triangle_components();
+        let mut count = std::collections::HashMap::<u32, usize>::new();
         for r in &roots {
             *count.entry(*r).or_default() += 1;
         }

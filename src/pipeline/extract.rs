@@ -15,7 +15,9 @@
 //! RUN/<object>/turntable/         frame_NNN.png, and turntable.gif beside it
 //! ```
 
+use super::checks::{check_views, field_warnings, mesh_warnings};
 use crate::error::{Error, Result};
+use crate::field::checks::HeldOutCheck;
 use crate::field::holdout::is_held_out;
 use crate::field::{fit_scene, model_notes, FieldKind, FitOptions, MaskSource, TrainReport};
 use crate::mesh::frame::GltfFrame;
@@ -28,7 +30,7 @@ use crate::segment::output::masks_dir;
 use crate::segment::{
     segment_scene, ObjectPrompt, ObjectSegmentation, PropagationOptions, ViewStatus,
 };
-use crate::util::{mem::peak_rss_mib, AtomicDir, Progress};
+use crate::util::{mem::peak_rss_mib, AtomicDir, Progress, Warning};
 use glam::DVec3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -44,8 +46,12 @@ pub struct ExtractOptions {
     pub mesh: FieldMeshOptions,
     pub turntable: TurntableOptions,
     pub overwrite: bool,
-    /// Hold out every n-th view from training, for evaluation ([`is_held_out`]; 0: none).
+    /// Hold out every n-th view from training, for evaluation ([`is_held_out`]; 0: keep
+    /// `check_views` back instead).
     pub hold_out_every: usize,
+    /// Without `hold_out_every`: at most this many ok views kept out of training to check the
+    /// field on ([`super::checks::check_views`]).
+    pub check_views: usize,
 }
 
 impl Default for ExtractOptions {
@@ -61,6 +67,7 @@ impl Default for ExtractOptions {
             turntable: TurntableOptions::default(),
             overwrite: false,
             hold_out_every: 0,
+            check_views: 3,
         }
     }
 }
@@ -76,7 +83,7 @@ pub struct SegmentationSummary {
     pub ok_views: Vec<String>,
     /// Views left out of training because segmentation did not mark them ok.
     pub excluded: Vec<String>,
-    /// Ok views held out of training for evaluation.
+    /// Ok views held out of training for evaluation and the field's self-check.
     pub held_out: Vec<String>,
 }
 
@@ -86,6 +93,8 @@ pub struct ObjectReport {
     pub segmentation: SegmentationSummary,
     pub train: TrainReport,
     pub train_seconds: f64,
+    /// The field measured on the held-out views (the self-check's figures).
+    pub held_out_check: HeldOutCheck,
     pub mesh: FieldMeshReport,
     pub mesh_seconds: f64,
     pub render_seconds: f64,
@@ -112,6 +121,8 @@ pub struct ExtractReport {
     pub segment_encoder_runs: usize,
     pub peak_rss_mib: u64,
     pub frame: GltfFrame,
+    /// Every self-check that tripped, scene to mesh ([`crate::util::warnings`]).
+    pub warnings: Vec<Warning>,
     /// Filled in by callers that know the truth (the demo).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth: Option<serde_json::Value>,
@@ -152,10 +163,12 @@ pub fn extract(
 
     let mut objects = Vec::new();
     let mut meshes: Vec<Mesh> = Vec::new();
+    let mut warnings = seg_report.warnings.clone();
     for obj in &segs {
-        let (report, mesh) = extract_object(scene, obj, opts, &frame, &run, progress)?;
+        let (report, mesh, w) = extract_object(scene, obj, opts, &frame, &run, progress)?;
         objects.push(report);
         meshes.push(mesh);
+        warnings.extend(w);
     }
     let turned: Vec<Mesh> = meshes
         .iter()
@@ -182,6 +195,7 @@ pub fn extract(
         segment_encoder_runs: seg_report.encoder_runs,
         peak_rss_mib: peak_rss_mib(),
         frame,
+        warnings,
         truth: None,
     };
     write_report(&root.join("report.json"), &report)?;
@@ -202,7 +216,8 @@ impl RunFolder {
     }
 }
 
-/// Train, mesh and render one segmented object into `RUN/<object>/`.
+/// Train, mesh and render one segmented object into `RUN/<object>/`; its field's and mesh's
+/// self-checks.
 fn extract_object(
     scene: &Scene,
     obj: &ObjectSegmentation,
@@ -210,9 +225,9 @@ fn extract_object(
     frame: &GltfFrame,
     run: &RunFolder,
     progress: &dyn Progress,
-) -> Result<(ObjectReport, Mesh)> {
+) -> Result<(ObjectReport, Mesh, Vec<Warning>)> {
     let dir = run.root.join(&obj.name);
-    let summary = summarise(obj, opts.hold_out_every);
+    let summary = summarise(obj, opts.hold_out_every, opts.check_views);
     if summary.num_ok == 0 {
         let sheet = run
             .root
@@ -244,12 +259,22 @@ fn extract_object(
     )?;
     let train_seconds = t.elapsed().as_secs_f64();
     let field = &fitted.trainer.field;
+    let (held_out_check, mut warnings) = field_warnings(
+        scene,
+        obj,
+        &summary.held_out,
+        fit.downscale,
+        field,
+        &fitted.report,
+        fit.steps,
+    )?;
 
     let t = Instant::now();
     let (mesh, mesh_report) = mesh_field(field, &obj.name, &opts.mesh)
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
     write_mesh(&mesh, Some(frame), &dir.join("mesh.glb"))?;
     write_mesh(&mesh, Some(frame), &dir.join("mesh.ply"))?;
+    warnings.extend(mesh_warnings(&obj.name, &mesh, field));
     let mesh_seconds = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -278,6 +303,7 @@ fn extract_object(
         segmentation: summary,
         train: fitted.report,
         train_seconds,
+        held_out_check,
         mesh: mesh_report,
         mesh_seconds,
         render_seconds: t.elapsed().as_secs_f64(),
@@ -285,12 +311,17 @@ fn extract_object(
         mesh_glb: run.final_path(&dir.join("mesh.glb")),
         turntable_gif: run.final_path(&gif),
     };
-    Ok((report, mesh))
+    Ok((report, mesh, warnings))
 }
 
 /// Which views an object trains on: ok views, less every `hold_out_every`-th held out for
-/// evaluation ([`is_held_out`]).
-fn summarise(obj: &ObjectSegmentation, hold_out_every: usize) -> SegmentationSummary {
+/// evaluation ([`is_held_out`]), or without it up to `check_views` kept back for the field's
+/// self-check ([`check_views`]).
+fn summarise(
+    obj: &ObjectSegmentation,
+    hold_out_every: usize,
+    most_check_views: usize,
+) -> SegmentationSummary {
     let names = |keep: &dyn Fn(usize, ViewStatus) -> bool| -> Vec<String> {
         obj.views
             .iter()
@@ -309,7 +340,11 @@ fn summarise(obj: &ObjectSegmentation, hold_out_every: usize) -> SegmentationSum
         num_points: obj.points.len(),
         ok_views: names(&|_, s| s == ViewStatus::Ok),
         excluded: names(&|_, s| s != ViewStatus::Ok),
-        held_out: names(&|i, s| is_held_out(i, n) && s == ViewStatus::Ok),
+        held_out: if n > 0 {
+            names(&|i, s| is_held_out(i, n) && s == ViewStatus::Ok)
+        } else {
+            check_views(obj, most_check_views)
+        },
     }
 }
 

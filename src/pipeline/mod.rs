@@ -3,6 +3,7 @@
 //! scene field trained with the reverse alpha, its hole filled) and [`demo`] (the demo scene,
 //! extracted and scored against its truth).
 
+pub mod checks;
 pub mod demo;
 pub mod demo_edit;
 pub mod extract;

@@ -4,11 +4,13 @@
 
 pub mod camera;
 pub mod camera_path;
+pub mod checks;
 pub mod formats;
 pub mod frames;
 pub mod info;
 pub mod io;
 pub mod sfm;
+mod subset;
 
 pub use camera::{Camera, CameraModel};
 pub use frames::Pose;

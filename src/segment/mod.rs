@@ -8,9 +8,11 @@
 //! - [`hull`] (the alpha-shape expected mask), [`regions`] (mask islands and pin-holes),
 //!   [`distance`] (exact distance transforms).
 //! - [`sam_views`]: SAM ([`crate::sam`]) as the propagation's segmenter.
-//! - [`run`]: `objnerf segment` as a call (checks, propagation, outputs); [`output`]: masks,
-//!   point clouds, contact sheets; [`saved`]: a saved run read back; [`evaluate`]: scores against truth masks.
+//! - [`run`]: `objnerf segment` as a call (checks, propagation, outputs); [`checks`]: the
+//!   self-checks written into its report as warnings; [`output`]: masks, point clouds, contact
+//!   sheets; [`saved`]: a saved run read back; [`evaluate`]: scores against truth masks.
 
+pub mod checks;
 pub mod distance;
 pub mod evaluate;
 pub mod hull;

@@ -96,6 +96,7 @@ pub fn propagate(
     let mut first = seg.segment(scene, prompt.view, &prompt.points, prompt.bbox)?;
     clean(&mut first, &prompt.points, opts);
     check_click_mask(scene, prompt, &first.mask)?;
+    let click_agreement = click_agreement(scene, prompt, &first.mask, seg)?;
     vote(
         scene,
         prompt.view,
@@ -151,6 +152,33 @@ pub fn propagate(
         name: prompt.name.clone(),
         views,
         points,
+        click_agreement,
+    })
+}
+
+/// How far the segmenter's alternatives for a lone click agree with the clicked mask: the lower
+/// of its IoU with the refined answer (a flip between part and whole) and the IoU that most of
+/// the moved clicks reach (the second-highest of four: three of them leaving the object means
+/// the click is on something smaller than a click's slack, while one or two leaving is just a
+/// click near an edge, which is harmless). None without alternatives (several clicks, a box,
+/// or a segmenter that gives none).
+pub fn click_agreement(
+    scene: &Scene,
+    prompt: &ObjectPrompt,
+    mask: &GrayImage,
+    seg: &mut dyn ViewSegmenter,
+) -> Result<Option<f64>> {
+    if prompt.points.len() != 1 || prompt.bbox.is_some() {
+        return Ok(None);
+    }
+    let alts = seg.alternatives(scene, prompt.view, &prompt.points)?;
+    let refined = alts.refined.as_ref().map(|r| iou(mask, r));
+    let mut moved: Vec<f64> = alts.moved.iter().map(|m| iou(mask, m)).collect();
+    moved.sort_by(|a, b| b.total_cmp(a));
+    let most_moved = (moved.len() >= 2).then(|| moved[1]);
+    Ok(match (refined, most_moved) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
     })
 }
 
@@ -210,13 +238,18 @@ fn vote(scene: &Scene, view: usize, mask: &GrayImage, margin: f64, votes: &mut [
     }
 }
 
-/// Compare every mask with the expected mask of D's projection; mark obstructed, cut and tiny views.
+/// Compare every mask with the expected mask of D's projection; mark obstructed, cut and tiny
+/// views; measure each mask's spill (see [`spill`]).
 fn classify_views(
     scene: &Scene,
     points: &[usize],
     views: &mut [ViewResult],
     opts: &PropagationOptions,
 ) {
+    let mut in_d = vec![false; scene.points.len()];
+    for &p in points {
+        in_d[p] = true;
+    }
     for (v, res) in views.iter_mut().enumerate() {
         let im = &scene.images[v];
         let cam = scene.camera_of(im);
@@ -229,6 +262,7 @@ fn classify_views(
             res.flags.push("cut");
         }
         let Some(mask) = &res.mask else { continue };
+        res.spill = spill(scene, v, mask, &in_d, opts.edge_margin_px);
         let area = mask::area(mask);
         if (area as f64) < opts.tiny_fraction * (mask.width() * mask.height()) as f64 {
             res.flags.push("tiny");
@@ -243,6 +277,30 @@ fn classify_views(
             res.status = ViewStatus::Obstructed;
         }
     }
+}
+
+/// Masks with fewer tracked features this far inside have no spill figure: a few features
+/// cannot tell a spill from a feature near an edge.
+pub const MIN_SPILL_FEATURES: usize = 8;
+
+/// Of the view's tracked features at least `margin` inside the mask, the fraction whose 3D point
+/// is not in D. Each of them voted "in" from this view, so it left D because another view saw
+/// it clearly outside the object: this mask covers something the others do not (a planter
+/// under a plant). None with fewer than [`MIN_SPILL_FEATURES`] such features.
+fn spill(scene: &Scene, view: usize, mask: &GrayImage, in_d: &[bool], margin: f64) -> Option<f64> {
+    let sd = signed_distance(mask);
+    let (w, h) = (mask.width() as i64, mask.height() as i64);
+    let (mut inside, mut out) = (0usize, 0usize);
+    for f in &scene.images[view].features {
+        let Some(p) = f.point else { continue };
+        let (x, y) = (f.xy.x.floor() as i64, f.xy.y.floor() as i64);
+        if x < 0 || y < 0 || x >= w || y >= h || (sd[(y * w + x) as usize] as f64) < margin {
+            continue;
+        }
+        inside += 1;
+        out += (!in_d[p]) as usize;
+    }
+    (inside >= MIN_SPILL_FEATURES).then(|| out as f64 / inside as f64)
 }
 
 /// Several objects in one pass: Algorithm 1 for each (the segmenter's embedding cache makes every
@@ -353,5 +411,6 @@ pub fn projection_baseline(
         name: prompt.name.clone(),
         views,
         points,
+        click_agreement: None,
     })
 }

@@ -1,14 +1,16 @@
 //! `objnerf segment` as a library call: one or more objects from clicks in one view, propagated
 //! to every view; writes masks, the segmented sparse clouds, contact sheets and report.json.
 
+use super::checks::check_segmentation;
 use super::output::{write_contact_sheet, write_object};
 use super::propagate::{propagate_objects, require_tracks, require_view_tracks};
 use super::sam_views::SamViews;
 use super::types::{ObjectPrompt, ObjectSegmentation, PropagationOptions, ViewResult, ViewStatus};
 use crate::error::{Error, Result};
 use crate::sam::Segmenter;
+use crate::scene::checks::{check_object_visibility, check_scene};
 use crate::scene::Scene;
-use crate::util::{AtomicDir, Progress};
+use crate::util::{AtomicDir, Progress, Warning};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -20,6 +22,8 @@ pub struct ObjectReport {
     pub num_ok: usize,
     pub num_obstructed: usize,
     pub num_absent: usize,
+    /// How far SAM's alternatives for the click agree with its mask (see `segment::checks`).
+    pub click_agreement: Option<f64>,
     pub views: Vec<ViewResult>,
 }
 
@@ -38,6 +42,8 @@ pub struct SegmentReport {
     pub objects: Vec<ObjectReport>,
     pub encoder_runs: usize,
     pub timings: Timings,
+    /// What the scene and segmentation self-checks found ([`segmentation_warnings`]).
+    pub warnings: Vec<Warning>,
 }
 
 /// Check the prompts before any work: names usable as file names and distinct, at least one
@@ -140,6 +146,7 @@ pub fn segment_scene(
     let report = SegmentReport {
         scene: scene.source.display().to_string(),
         objects: objects.iter().map(ObjectReport::of).collect(),
+        warnings: segmentation_warnings(scene, &objects),
         encoder_runs: seg.encoder_runs(),
         timings: Timings {
             total: t0.elapsed().as_secs_f64(),
@@ -156,6 +163,16 @@ pub fn segment_scene(
     Ok((report, objects))
 }
 
+/// The scene's self-checks, and per object the cameras that see it and the segmentation's.
+pub fn segmentation_warnings(scene: &Scene, objects: &[ObjectSegmentation]) -> Vec<Warning> {
+    let mut out = check_scene(scene);
+    for o in objects {
+        out.extend(check_object_visibility(scene, &o.name, &o.points));
+        out.extend(check_segmentation(scene, o));
+    }
+    out
+}
+
 impl ObjectReport {
     fn of(o: &ObjectSegmentation) -> ObjectReport {
         let count = |s| o.views.iter().filter(|v| v.status == s).count();
@@ -165,6 +182,7 @@ impl ObjectReport {
             num_ok: count(ViewStatus::Ok),
             num_obstructed: count(ViewStatus::Obstructed),
             num_absent: count(ViewStatus::Absent),
+            click_agreement: o.click_agreement,
             views: o.views.clone(),
         }
     }

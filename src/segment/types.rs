@@ -24,6 +24,26 @@ pub trait ViewSegmenter {
         prompts: &[PointPrompt],
         bbox: Option<[f64; 4]>,
     ) -> Result<ViewMask>;
+
+    /// Other masks the segmenter could as well have given for a lone click in `view`, to tell
+    /// whether the click is ambiguous. None by default.
+    fn alternatives(
+        &mut self,
+        _scene: &Scene,
+        _view: usize,
+        _click: &[PointPrompt],
+    ) -> Result<ClickAlternatives> {
+        Ok(ClickAlternatives::default())
+    }
+}
+
+/// A segmenter's other answers to one click: its own answer refined (fed back as a prompt:
+/// where the choice between part and whole is close, it flips) and the click moved a little
+/// in several directions.
+#[derive(Clone, Debug, Default)]
+pub struct ClickAlternatives {
+    pub refined: Option<GrayImage>,
+    pub moved: Vec<GrayImage>,
 }
 
 /// A segmenter's answer: the mask at image size (0/255) and the model's score. (No logits: at
@@ -116,6 +136,10 @@ pub struct ViewResult {
     pub num_projected: usize,
     /// Position in the visiting order (0 = the clicked view), None when never prompted.
     pub order: Option<usize>,
+    /// Of the tracked features well inside the mask, the fraction whose 3D points other views
+    /// saw outside the object: the mask spilled onto something else (None: too few features
+    /// inside to say, see `segment::checks`).
+    pub spill: Option<f64>,
     /// "cut" (the object runs off the frame), "tiny" (mask under `tiny_fraction` of the image).
     pub flags: Vec<&'static str>,
     #[serde(skip)]
@@ -137,6 +161,7 @@ impl ViewResult {
             num_prompts: 0,
             num_projected: 0,
             order: None,
+            spill: None,
             flags: vec![],
             mask: None,
             prompts: vec![],
@@ -150,6 +175,9 @@ pub struct ObjectSegmentation {
     pub views: Vec<ViewResult>,
     /// D: indices into `scene.points` of the object's points.
     pub points: Vec<usize>,
+    /// How far the segmenter's alternatives for the click agree with its mask (see
+    /// `propagate::click_agreement`; None: no alternatives, e.g. several clicks or a box).
+    pub click_agreement: Option<f64>,
 }
 
 #[derive(Clone, Copy, Default)]

@@ -12,3 +12,9 @@ pub fn peak_rss_bytes() -> Option<u64> {
 pub fn peak_rss_mib() -> u64 {
     peak_rss_bytes().map(|b| (b + (1 << 19)) >> 20).unwrap_or(0)
 }
+
+/// Reset the peak RSS to the current RSS (Linux: "5" into /proc/self/clear_refs), so the next
+/// [`peak_rss_bytes`] is the peak of what follows. False where that is not possible.
+pub fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}

@@ -1,16 +1,20 @@
-//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks, inpainting, memory,
-//! paths, progress reporting, a seeded random generator, order statistics.
+//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks,
+//! inpainting, memory, paths, progress reporting, a seeded random generator, order statistics,
+//! the self-checks' warnings.
 
 pub mod atomic;
 pub mod digest;
 pub mod inpaint;
+pub mod machine;
 pub mod mask;
 pub mod mem;
 pub mod paths;
 pub mod progress;
 pub mod rng;
 pub mod stats;
+pub mod warnings;
 
 pub use atomic::{write_atomic, AtomicDir};
 pub use progress::{Detail, Progress, Silent};
 pub use rng::Rng;
+pub use warnings::{Stage, Warning};

@@ -67,6 +67,8 @@ pub struct SfmReport {
     pub model_dir: PathBuf,
     /// Image pairs matched when they were chosen from the poses (triangulation).
     pub matched_pairs: Option<usize>,
+    /// The self-checks of the model COLMAP made ([`crate::scene::checks`]).
+    pub warnings: Vec<crate::util::Warning>,
 }
 
 /// What `objnerf sfm` was given.
@@ -229,6 +231,11 @@ fn finish(
     model.source = out.join("sparse/0");
     model.format = SourceFormat::ColmapBinary;
     let obs: usize = model.points.iter().map(|p| p.track.len()).sum();
+    let mut warnings: Vec<_> =
+        crate::scene::checks::check_registration(num_images, model.images.len())
+            .into_iter()
+            .collect();
+    warnings.extend(crate::scene::checks::check_scene(&model));
     Ok(SfmReport {
         mode,
         num_images,
@@ -242,5 +249,6 @@ fn finish(
         seconds: start.elapsed().as_secs_f64(),
         model_dir: out.join("sparse/0"),
         matched_pairs: None,
+        warnings,
     })
 }

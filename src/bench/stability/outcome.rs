@@ -1,0 +1,198 @@
+//! What the suite's cases come to: the options, each case's result and verdict, the summary,
+//! and the report the outputs are written from.
+
+use super::cases::{self, CaseSpec, Job};
+use super::score::{self, ObjectScores};
+use crate::util::{Stage, Warning};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+#[derive(Clone, Debug)]
+pub struct StabilityOptions {
+    /// The suite's folder: scenes, cases, and the results.
+    pub out: PathBuf,
+    /// The few cases of [`cases::quick_suite`] instead of the full suite.
+    pub quick: bool,
+    /// Seeds every perturbation and training.
+    pub seed: u64,
+    /// Training steps per object (a step budget: results do not depend on the machine's load).
+    pub steps: usize,
+    /// lego triangulated by `objnerf sfm` (a COLMAP model), to add its cases (None: skipped).
+    pub lego: Option<PathBuf>,
+    /// Run only the cases whose id contains this.
+    pub only: Option<String>,
+}
+
+impl Default for StabilityOptions {
+    fn default() -> Self {
+        StabilityOptions {
+            out: PathBuf::from("runs/stability"),
+            quick: false,
+            seed: 0,
+            steps: 1000,
+            lego: None,
+            only: None,
+        }
+    }
+}
+
+/// How a case came out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// Metrics above the floors, no warning.
+    Ok,
+    /// Metrics above the floors, but warned about.
+    FalseAlarm,
+    /// Metrics below a floor, and warned about (or refused with a clear error).
+    Detected,
+    /// Metrics below a floor, no warning: the failure the suite exists to rule out.
+    Silent,
+    /// Clicks outside the object: what happens is reported, not scored.
+    NotScored,
+}
+
+impl Verdict {
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Ok => "ok",
+            Verdict::FalseAlarm => "false alarm",
+            Verdict::Detected => "detected",
+            Verdict::Silent => "SILENT",
+            Verdict::NotScored => "not scored",
+        }
+    }
+}
+
+/// One object's verdict from its scores and the warnings about it (or about the whole scene).
+/// A warning about a stage the truth cannot score (lego's mesh: there is no true mesh) counts
+/// neither way: it can be neither confirmed nor called a false alarm.
+fn object_verdict(s: &ObjectScores, warnings: &[Warning]) -> Verdict {
+    let bad = s.segment_bad() || s.field_bad() == Some(true);
+    let scored = |stage: Stage| match stage {
+        Stage::Scene | Stage::Segment => true,
+        Stage::Field => s.psnr.is_some() || s.chamfer.is_some(),
+        Stage::Mesh => s.chamfer.is_some(),
+    };
+    let flagged = warnings
+        .iter()
+        .any(|w| w.object.as_deref().is_none_or(|o| o == s.object) && scored(w.stage));
+    match (bad, flagged) {
+        (false, false) => Verdict::Ok,
+        (false, true) => Verdict::FalseAlarm,
+        (true, true) => Verdict::Detected,
+        (true, false) => Verdict::Silent,
+    }
+}
+
+/// A case's verdict: an error is a detected failure (the run refused with a message); else the
+/// worst of its objects' (silent, then detected, then false alarm).
+pub fn classify(scores: &[ObjectScores], warnings: &[Warning], error: bool) -> Verdict {
+    if error {
+        return Verdict::Detected;
+    }
+    let v: Vec<Verdict> = scores.iter().map(|s| object_verdict(s, warnings)).collect();
+    [Verdict::Silent, Verdict::Detected, Verdict::FalseAlarm]
+        .into_iter()
+        .find(|x| v.contains(x))
+        .unwrap_or(Verdict::Ok)
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseResult {
+    pub spec: CaseSpec,
+    pub verdict: Verdict,
+    /// The click (pixels) of a click case.
+    pub click: Option<[f64; 2]>,
+    pub objects: Vec<ObjectScores>,
+    pub warnings: Vec<Warning>,
+    /// The run's error, when it refused.
+    pub error: Option<String>,
+    pub seconds: f64,
+    pub cpu_seconds: f64,
+    pub peak_rss_mib: u64,
+}
+
+/// What the suite found, over the scored cases.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub cases: usize,
+    pub scored: usize,
+    pub counts: BTreeMap<String, usize>,
+    pub silent: usize,
+    pub false_alarm_rate: f64,
+    /// Over the inside clicks: median and 10th percentile of mIoU (a refused click counts 0),
+    /// how many fell under the floor and whether each of those was flagged.
+    pub click_median_miou: Option<f64>,
+    pub click_p10_miou: Option<f64>,
+    pub clicks_below_floor: usize,
+    pub clicks_below_floor_flagged: usize,
+    pub seconds: f64,
+    pub cpu_seconds: f64,
+}
+
+pub fn summarise(results: &[CaseResult], seconds: f64, cpu_seconds: f64) -> Summary {
+    let scored: Vec<&CaseResult> = results
+        .iter()
+        .filter(|r| r.verdict != Verdict::NotScored)
+        .collect();
+    let mut counts = BTreeMap::new();
+    for r in &scored {
+        *counts.entry(r.verdict.name().to_string()).or_insert(0) += 1;
+    }
+    let count = |v: Verdict| scored.iter().filter(|r| r.verdict == v).count();
+    let inside: Vec<&CaseResult> = results
+        .iter()
+        .filter(|r| {
+            matches!(
+                r.spec.job,
+                Job::Click {
+                    kind: cases::ClickKind::Inside,
+                    ..
+                }
+            )
+        })
+        .collect();
+    let mious: Vec<f64> = inside
+        .iter()
+        .map(|r| r.objects.first().and_then(|o| o.miou).unwrap_or(0.0))
+        .collect();
+    let below: Vec<&&CaseResult> = inside
+        .iter()
+        .filter(|r| r.objects.first().and_then(|o| o.miou).unwrap_or(0.0) < score::MIOU_FLOOR)
+        .collect();
+    Summary {
+        cases: results.len(),
+        scored: scored.len(),
+        counts,
+        silent: count(Verdict::Silent),
+        false_alarm_rate: count(Verdict::FalseAlarm) as f64 / scored.len().max(1) as f64,
+        click_median_miou: crate::util::stats::median(mious.clone()),
+        click_p10_miou: crate::util::stats::quantile(mious, 0.1),
+        clicks_below_floor: below.len(),
+        clicks_below_floor_flagged: below
+            .iter()
+            .filter(|r| r.verdict == Verdict::Detected)
+            .count(),
+        seconds,
+        cpu_seconds,
+    }
+}
+
+/// Everything the suite wrote about itself.
+#[derive(Clone, Debug, Serialize)]
+pub struct StabilityReport {
+    pub command: String,
+    pub machine: crate::util::machine::Machine,
+    pub load_average_end: Option<f64>,
+    pub git_commit: Option<String>,
+    pub quick: bool,
+    pub seed: u64,
+    pub steps: usize,
+    pub floors: BTreeMap<&'static str, f64>,
+    /// Subjects the suite left out, and why.
+    pub skipped: Vec<String>,
+    pub summary: Summary,
+    pub cases: Vec<CaseResult>,
+}

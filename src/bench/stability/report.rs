@@ -1,0 +1,333 @@
+//! The suite's outputs: `stability.json` (everything), `stability.md` (the tables the README
+//! summarises) and two SVG charts: success rate against perturbation strength per stage, and
+//! accuracy against time across the suite.
+
+use super::cases::Subject;
+use super::cases::{ClickKind, Job};
+use super::outcome::{CaseResult, StabilityReport, Verdict};
+use super::score::{ObjectScores, MIOU_FLOOR, PSNR_FLOOR};
+use crate::error::{Error, Result};
+use crate::util::atomic::write_bytes_atomic;
+use plotters::prelude::*;
+use std::fmt::Write;
+use std::path::Path;
+
+pub fn write_all(r: &StabilityReport, out: &Path) -> Result<()> {
+    let path = out.join("stability.json");
+    let json = serde_json::to_string_pretty(r).map_err(|e| Error::json(&path, e))?;
+    write_bytes_atomic(&path, json.as_bytes())?;
+    write_bytes_atomic(&out.join("stability.md"), markdown(r).as_bytes())?;
+    let chart_err = |p: &Path, e: String| Error::invalid(format!("{}: {e}", p.display()));
+    let p = out.join("stability_success.svg");
+    let svg = success_chart(&r.cases).map_err(|e| chart_err(&p, e.to_string()))?;
+    write_bytes_atomic(&p, svg.as_bytes())?;
+    let p = out.join("stability_accuracy_time.svg");
+    let svg = accuracy_chart(&r.cases).map_err(|e| chart_err(&p, e.to_string()))?;
+    write_bytes_atomic(&p, svg.as_bytes())
+}
+
+fn f(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".into(), |x| format!("{x:.digits$}"))
+}
+
+fn codes(c: &CaseResult) -> String {
+    let mut v: Vec<&str> = c.warnings.iter().map(|w| w.code).collect();
+    v.dedup();
+    if let Some(e) = &c.error {
+        let short: String = e.chars().take(70).collect();
+        v.push("error");
+        return format!("{}: {short}", v.join(", "));
+    }
+    v.join(", ")
+}
+
+fn is_click(c: &CaseResult) -> Option<ClickKind> {
+    match c.spec.job {
+        Job::Click { kind, .. } => Some(kind),
+        Job::Extract { .. } => None,
+    }
+}
+
+/// The markdown tables: summary, every extract case, the clicks.
+pub fn markdown(r: &StabilityReport) -> String {
+    let s = &r.summary;
+    let mut m = String::new();
+    let _ = writeln!(
+        m,
+        "# Stability suite{}\n",
+        if r.quick { " (quick)" } else { "" }
+    );
+    let _ = writeln!(
+        m,
+        "`{}` at commit {} on {} ({} cores), load average {} at the start and {} at the end; {:.0} s wall, {:.0} s CPU; {} training steps per object, seed {}.\n",
+        r.command,
+        r.git_commit.as_deref().unwrap_or("?"),
+        r.machine.cpu,
+        r.machine.cores,
+        f(r.machine.load_average, 1),
+        f(r.load_average_end, 1),
+        s.seconds,
+        s.cpu_seconds,
+        r.steps,
+        r.seed
+    );
+    let _ = writeln!(
+        m,
+        "Floors: mIoU >= {}, obstructed-view F1 >= {}, object PSNR >= {} dB (novel views, over the true mask's box), Chamfer <= {}% of the true box diagonal.\n",
+        r.floors["miou"],
+        r.floors["obstruction_f1"],
+        r.floors["psnr_db"],
+        100.0 * r.floors["chamfer_fraction_of_diagonal"]
+    );
+    let counts: Vec<String> = s.counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    let _ = writeln!(
+        m,
+        "**{} scored cases: {}; silent {}; false alarms {:.1}%.**\n",
+        s.scored,
+        counts.join(", "),
+        s.silent,
+        100.0 * s.false_alarm_rate
+    );
+    if let (Some(med), Some(p10)) = (s.click_median_miou, s.click_p10_miou) {
+        let _ = writeln!(
+            m,
+            "Clicks inside the mug: median mIoU {med:.3}, 10th percentile {p10:.3}; {} below {} ({} of them flagged).\n",
+            s.clicks_below_floor, r.floors["miou"], s.clicks_below_floor_flagged
+        );
+    }
+    for sk in &r.skipped {
+        let _ = writeln!(m, "- skipped: {sk}");
+    }
+    let _ = writeln!(
+        m,
+        "\n| case | group | strength | verdict | mIoU | F1 | PSNR | Chamfer % | warnings | s | CPU s | MiB |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
+    let none = ObjectScores::default();
+    for c in r.cases.iter().filter(|c| is_click(c).is_none()) {
+        // A refused case has no scores: one row all the same.
+        let refused = c.objects.is_empty().then_some((0, &none));
+        for (i, o) in c.objects.iter().enumerate().chain(refused) {
+            let _ = writeln!(
+                m,
+                "| {}{} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} | {:.0} | {} |",
+                c.spec.id,
+                if c.objects.len() > 1 {
+                    format!(" ({})", o.object)
+                } else {
+                    String::new()
+                },
+                c.spec.group,
+                c.spec.strength,
+                if i == 0 { c.verdict.name() } else { "" },
+                f(o.miou, 3),
+                f(o.obstruction_f1, 2),
+                f(o.psnr, 1),
+                f(o.chamfer.map(|x| 100.0 * x), 2),
+                if i == 0 { codes(c) } else { String::new() },
+                c.seconds,
+                c.cpu_seconds,
+                c.peak_rss_mib
+            );
+        }
+    }
+    let _ = writeln!(
+        m,
+        "\n### Clicks\n\n| case | click (px) | verdict | mIoU | F1 | warnings | s |\n|---|---|---|---|---|---|---|"
+    );
+    for c in r.cases.iter().filter(|c| is_click(c).is_some()) {
+        let o = c.objects.first().cloned().unwrap_or_default();
+        let _ = writeln!(
+            m,
+            "| {} | {} | {} | {} | {} | {} | {:.0} |",
+            c.spec.id,
+            c.click
+                .map_or("-".into(), |p| format!("{:.1}, {:.1}", p[0], p[1])),
+            c.verdict.name(),
+            f(o.miou, 3),
+            f(o.obstruction_f1, 2),
+            codes(c),
+            c.seconds
+        );
+    }
+    m
+}
+
+/// Mean over a case's objects of a per-object figure.
+fn mean_of(c: &CaseResult, get: impl Fn(&ObjectScores) -> Option<f64>) -> Option<f64> {
+    let v: Vec<f64> = c.objects.iter().filter_map(get).collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// One figure of an object's scores.
+type Figure = fn(&ObjectScores) -> Option<f64>;
+
+const GROUPS: [&str; 6] = [
+    "views",
+    "pose noise (deg)",
+    "image noise (sigma)",
+    "exposure (+-stops)",
+    "motion blur (px)",
+    "objects at once",
+];
+
+/// Success rate (share of views with a good mask; share of novel views with a good render)
+/// against strength, a panel per perturbation, the unperturbed baseline at its strength.
+fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn std::error::Error>> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1500, 820)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let areas = root.split_evenly((2, 3));
+        let baseline = cases.iter().find(|c| c.spec.id == "baseline");
+        for (area, group) in areas.iter().zip(GROUPS) {
+            // The demo's cases (lego's are in the table).
+            let mut pts: Vec<(f64, &CaseResult)> = cases
+                .iter()
+                .filter(|c| c.spec.group == group && matches!(c.spec.subject, Subject::Demo(_)))
+                .map(|c| (c.spec.strength, c))
+                .collect();
+            if let Some(b) = baseline {
+                let s = match group {
+                    "views" => b.objects.first().map_or(36.0, |_| 36.0),
+                    "objects at once" => 1.0,
+                    _ => 0.0,
+                };
+                pts.push((s, b));
+            }
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let x1 = match pts.iter().map(|p| p.0).fold(0.0f64, f64::max) {
+                x if x > 0.0 => x * 1.1,
+                _ => 1.0,
+            };
+            // Room above 1 for the legend.
+            let mut c = ChartBuilder::on(area)
+                .caption(group, ("sans-serif", 18))
+                .margin(12)
+                .x_label_area_size(34)
+                .y_label_area_size(44)
+                .build_cartesian_2d(0.0..x1, -0.02..1.35)?;
+            c.configure_mesh()
+                .x_desc("strength")
+                .y_desc("success rate")
+                .draw()?;
+            let series: [(&str, RGBColor, Figure); 2] = [
+                ("segment: views with mask IoU >= floor", BLUE, |o| {
+                    o.segment_success
+                }),
+                ("field: novel views with PSNR >= floor", RED, |o| {
+                    o.field_success
+                }),
+            ];
+            for (name, col, get) in series {
+                let line: Vec<(f64, f64)> = pts
+                    .iter()
+                    .map(|(x, c)| {
+                        (
+                            *x,
+                            if c.error.is_some() {
+                                Some(0.0)
+                            } else {
+                                mean_of(c, get)
+                            },
+                        )
+                    })
+                    .filter_map(|(x, y)| y.map(|y| (x, y)))
+                    .collect();
+                c.draw_series(LineSeries::new(line.clone(), col.stroke_width(2)))?
+                    .label(name)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2))
+                    });
+                c.draw_series(line.iter().map(|&q| Circle::new(q, 4, col.filled())))?;
+            }
+            c.configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::UpperRight)
+                .draw()?;
+        }
+        root.present()?;
+    }
+    Ok(svg)
+}
+
+fn verdict_colour(v: Verdict) -> RGBColor {
+    match v {
+        Verdict::Ok => RGBColor(40, 150, 60),
+        Verdict::FalseAlarm => RGBColor(230, 160, 0),
+        Verdict::Detected => RGBColor(30, 90, 200),
+        Verdict::Silent => RGBColor(220, 20, 20),
+        Verdict::NotScored => RGBColor(150, 150, 150),
+    }
+}
+
+/// Accuracy against time: mIoU and object PSNR against each case's wall seconds, coloured by
+/// verdict.
+fn accuracy_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn std::error::Error>> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1400, 520)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let areas = root.split_evenly((1, 2));
+        let panels: [(&str, Figure, (f64, f64), f64); 2] = [
+            (
+                "mask mIoU against case time",
+                |o| o.miou,
+                (0.0, 1.0),
+                MIOU_FLOOR,
+            ),
+            (
+                "object PSNR (dB) against case time",
+                |o| o.psnr,
+                (8.0, 26.0),
+                PSNR_FLOOR,
+            ),
+        ];
+        let t1 = cases.iter().map(|c| c.seconds).fold(1.0f64, f64::max) * 1.1;
+        for (area, (title, get, (y0, y1), floor)) in areas.iter().zip(panels) {
+            let mut c = ChartBuilder::on(area)
+                .caption(title, ("sans-serif", 18))
+                .margin(12)
+                .x_label_area_size(34)
+                .y_label_area_size(44)
+                .build_cartesian_2d(0.0..t1, y0..y1)?;
+            c.configure_mesh()
+                .x_desc("wall seconds (shared 2-core machine)")
+                .y_desc(title.split(" against").next().unwrap_or(""))
+                .draw()?;
+            c.draw_series(LineSeries::new(
+                [(0.0, floor), (t1, floor)],
+                BLACK.mix(0.5).stroke_width(1),
+            ))?
+            .label("floor")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.5)));
+            for v in [
+                Verdict::Ok,
+                Verdict::FalseAlarm,
+                Verdict::Detected,
+                Verdict::Silent,
+                Verdict::NotScored,
+            ] {
+                let col = verdict_colour(v);
+                let pts: Vec<(f64, f64)> = cases
+                    .iter()
+                    .filter(|c| c.verdict == v)
+                    .filter_map(|c| mean_of(c, get).map(|y| (c.seconds, y.clamp(y0, y1))))
+                    .collect();
+                if pts.is_empty() {
+                    continue;
+                }
+                c.draw_series(pts.iter().map(|&q| Circle::new(q, 4, col.filled())))?
+                    .label(v.name())
+                    .legend(move |(x, y)| Circle::new((x + 8, y), 4, col.filled()));
+            }
+            c.configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::LowerRight)
+                .draw()?;
+        }
+        root.present()?;
+    }
+    Ok(svg)
+}

@@ -1,0 +1,111 @@
+//! `extract`'s self-checks of each object's field and mesh: which ok views are kept out of
+//! training to check the field on, and the checks themselves (see [`crate::field::checks`] and
+//! [`crate::mesh::checks`]).
+
+use crate::error::Result;
+use crate::field::checks::{check_field, measure_held_out, HeldOutCheck};
+use crate::field::{load_views, Field, MaskSource, TrainReport};
+use crate::mesh::checks::check_mesh;
+use crate::mesh::Mesh;
+use crate::scene::Scene;
+use crate::segment::{ObjectSegmentation, ViewStatus};
+use crate::util::Warning;
+use std::sync::Arc;
+
+/// Ok views kept out of training to check the field on: one per [`VIEWS_PER_CHECK_VIEW`] ok
+/// views, at most `most`, spread over the ok views (never the clicked one). Fewer than
+/// [`VIEWS_PER_CHECK_VIEW`] ok views keep none back (the segmentation warns of too few views).
+pub fn check_views(obj: &ObjectSegmentation, most: usize) -> Vec<String> {
+    let ok_count = obj
+        .views
+        .iter()
+        .filter(|v| v.status == ViewStatus::Ok)
+        .count();
+    let ok: Vec<&str> = obj
+        .views
+        .iter()
+        .filter(|v| v.order != Some(0) && seen_whole(v))
+        .map(|v| v.view.as_str())
+        .collect();
+    let k = most
+        .min((ok_count + 1) / VIEWS_PER_CHECK_VIEW)
+        .min(ok.len());
+    (0..k)
+        .map(|j| ok[((j as f64 + 0.5) * ok.len() as f64 / k as f64) as usize].to_string())
+        .collect()
+}
+
+/// Views whose mask covers this much of the object's projected points (and that are not cut by
+/// the frame) are taken to show it whole: a field is checked on those, since a mask of a
+/// partly hidden object is not what the field renders there.
+pub const WHOLE_COVERAGE: f64 = 0.9;
+
+fn seen_whole(v: &crate::segment::ViewResult) -> bool {
+    v.status == ViewStatus::Ok
+        && v.flags.is_empty()
+        && v.expected_coverage.is_some_and(|c| c >= WHOLE_COVERAGE)
+}
+
+/// One ok view in this many is kept back to check the field (so 10 views keep one back, 36
+/// keep three with the default of three at most): enough to catch a field that does not
+/// generalise, few enough not to starve training.
+pub const VIEWS_PER_CHECK_VIEW: usize = 8;
+
+/// Training views the field is compared on: at most this many ok views it trained on.
+pub const TRAIN_VIEWS_COMPARED: usize = 3;
+
+/// Measure the trained `field` on the `held_out` views and on a few training views (with the
+/// segmentation's masks, at the training `downscale`) and run the field checks.
+pub fn field_warnings(
+    scene: &Scene,
+    obj: &ObjectSegmentation,
+    held_out: &[String],
+    downscale: u32,
+    field: &Field,
+    train: &TrainReport,
+    planned_steps: usize,
+) -> Result<(HeldOutCheck, Vec<Warning>)> {
+    let keep: Vec<usize> = scene
+        .images
+        .iter()
+        .enumerate()
+        .filter(|(_, im)| held_out.contains(&im.name))
+        .map(|(i, _)| i)
+        .collect();
+    let mut held = if keep.is_empty() {
+        HeldOutCheck::default()
+    } else {
+        measure(scene, obj, &keep, downscale, field)?
+    };
+    if !keep.is_empty() {
+        let trained: Vec<usize> = (0..scene.images.len())
+            .filter(|i| seen_whole(&obj.views[*i]) && !keep.contains(i))
+            .collect();
+        let k = trained.len().min(TRAIN_VIEWS_COMPARED);
+        let pick: Vec<usize> = (0..k)
+            .map(|j| trained[(2 * j + 1) * trained.len() / (2 * k)])
+            .collect();
+        held.train_psnr = measure(scene, obj, &pick, downscale, field)?.psnr;
+    }
+    let warnings = check_field(&obj.name, train, planned_steps, &held);
+    Ok((held, warnings))
+}
+
+/// [`measure_held_out`] on the scene's views `keep` with the segmentation's masks.
+fn measure(
+    scene: &Scene,
+    obj: &ObjectSegmentation,
+    keep: &[usize],
+    downscale: u32,
+    field: &Field,
+) -> Result<HeldOutCheck> {
+    let sub = scene.subset(keep);
+    let masks = keep.iter().map(|&i| obj.views[i].mask.clone()).collect();
+    let views = load_views(&sub, &MaskSource::Images(Arc::new(masks)), downscale)?;
+    Ok(measure_held_out(field, &views))
+}
+
+/// The mesh checks of `object`'s mesh cut from `field`.
+pub fn mesh_warnings(object: &str, mesh: &Mesh, field: &Field) -> Vec<Warning> {
+    check_mesh(object, mesh, field.box_min, field.box_max, field.voxel)
+}
