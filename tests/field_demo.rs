@@ -103,7 +103,8 @@ fn cli_train_explains_the_grid_on_a_demo_object() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(
-        err.contains("because one pixel at the median camera distance")
+        err.contains("because ")
+            && err.contains("one pixel at the median camera distance")
             && err.contains("voxel(s) per pixel -> voxel")
             && err.contains("vertices ("),
         "{err}"
