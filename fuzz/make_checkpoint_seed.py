@@ -74,5 +74,5 @@ if __name__ == "__main__":
     pkl = pickle_of(sd)
     with open("fuzz/seeds/sam_pickle/data.pkl", "wb") as f:
         f.write(pkl)
-    with open("fuzz/seeds/sam_checkpoint/mobile_sam.pt", "wb") as f:
+    with open("fuzz/seeds/sam_checkpoint/tiny_state_dict.pt", "wb") as f:
         f.write(checkpoint(pkl, [a, b]))

@@ -309,7 +309,7 @@ sys.path.insert(0, "fuzz")
 import make_checkpoint_seed as ck
 
 r = "sam_checkpoint"
-good = seed("sam_checkpoint", "mobile_sam.pt")
+good = seed("sam_checkpoint", "tiny_state_dict.pt")
 put(r, "truncated", good[: len(good) - 40])
 put(r, "not_a_zip", b"PK\x03\x04" + bytes(60))
 put(r, "no_data_pkl", ck.checkpoint(b"", []).replace(b"archive/data.pkl", b"archive/data.pkx"))
