@@ -116,6 +116,7 @@ impl RemoveCmd {
             r.seconds.total,
             r.peak_rss_mib
         );
+        super::print_warnings(&r.warnings);
         Ok(())
     }
 }

@@ -15,6 +15,7 @@ use super::model::Field;
 use super::render::RenderOptions;
 use super::view::View;
 use crate::util::inpaint::inpaint_harmonic;
+use crate::util::{Stage, Warning};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -56,6 +57,13 @@ fn hole_of(v: &View) -> Vec<bool> {
 /// its centre see it inside their hole (voting, as the object field's visual hull).
 pub const REMOVED_HULL_VOTE: f32 = 0.8;
 
+/// What a cleared cell's density logit (`raw + shift`) is set to: softplus(-8) = 3.4e-4, so 20
+/// cleared voxels in a row still pass 99 % of the light, while the gradient (sigmoid(-8) =
+/// 3.4e-4 of the loss's) stays far above Adam's epsilon and the fill can grow the ground back.
+/// At -30 (the first version) the ground under a removed object was dead: it rendered as a
+/// white hole in every view.
+pub const CLEARED_LOGIT: f32 = -8.0;
+
 /// Empty the removed objects' volume: the cells whose centre projects into the hole of at least
 /// [`REMOVED_HULL_VOTE`] of the views that see it (two at least) get no density. No ray with a
 /// loss crosses that volume, so it would keep whatever density it started with (a remnant of the
@@ -83,7 +91,7 @@ pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
             seen >= 2 && hole as f32 >= REMOVED_HULL_VOTE * seen as f32
         })
         .collect();
-    let empty = -30.0 - field.shift();
+    let empty = CLEARED_LOGIT - field.shift();
     let ch = field.grid.channels;
     for c in &inside {
         for i in 0..8 {
@@ -96,6 +104,47 @@ pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
         }
     }
     inside.len()
+}
+
+/// How much more of a view's hole than of the rest of it may render see-through (opacity below
+/// 1/2) before the removal is flagged. Where the ground behind a removed object does not grow
+/// back, renders show the background colour through the floor (white patches in every view);
+/// a scene field is otherwise opaque almost everywhere, so a few percent is already a defect.
+pub const MAX_SEE_THROUGH_EXCESS: f64 = 0.05;
+
+/// The removal's self-check: the view whose hole is most see-through compared with the rest of
+/// it (`renders` of `views`, holes marked by their loss masks), as a warning past
+/// [`MAX_SEE_THROUGH_EXCESS`].
+pub fn see_through_check(views: &[View], renders: &[Rendered]) -> Option<Warning> {
+    let worst = views
+        .iter()
+        .zip(renders)
+        .filter_map(|(v, r)| {
+            let hole = hole_of(v);
+            let (mut n, mut clear) = ([0usize; 2], [0usize; 2]);
+            for (h, a) in hole.iter().zip(&r.alpha) {
+                n[*h as usize] += 1;
+                clear[*h as usize] += (*a < MIN_SURFACE_ALPHA) as usize;
+            }
+            (n[1] > 0).then(|| {
+                let frac = |k: usize| clear[k] as f64 / n[k].max(1) as f64;
+                (v.name.as_str(), frac(1) - frac(0), frac(1))
+            })
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (worst.1 > MAX_SEE_THROUGH_EXCESS).then(|| {
+        Warning::new(
+            Stage::Field,
+            "removal_see_through",
+            worst.1,
+            MAX_SEE_THROUGH_EXCESS,
+            format!(
+                "{:.0}% of the removed objects' pixels in {} render see-through (opacity below {MIN_SURFACE_ALPHA}): the ground behind them did not grow back, renders show holes there; train longer or check the segment run's masks",
+                100.0 * worst.2,
+                worst.0
+            ),
+        )
+    })
 }
 
 /// Render every view of `views` (colour on white, alpha, depth).

@@ -17,14 +17,16 @@
 use crate::error::{Error, Result};
 use crate::field::eval::{psnr, Rendered};
 use crate::field::holdout::is_held_out;
-use crate::field::hole::{clear_removed_volume, fill_unseen, find_unseen, render_all, ViewHole};
+use crate::field::hole::{
+    clear_removed_volume, fill_unseen, find_unseen, render_all, see_through_check, ViewHole,
+};
 use crate::field::session::StopRule;
 use crate::field::{model_notes, FieldKind, RenderOptions, SceneFit, SceneFitOptions, TrainReport};
 use crate::scene::io::read_mask;
 use crate::scene::Scene;
 use crate::segment::saved::SegmentRun;
 use crate::util::mask::{dilate, is_object};
-use crate::util::{mem::peak_rss_mib, AtomicDir, Progress};
+use crate::util::{mem::peak_rss_mib, AtomicDir, Progress, Warning};
 use image::{GrayImage, RgbImage};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -96,6 +98,8 @@ pub struct RemoveReport {
     pub scores: Option<RemovalScores>,
     pub seconds: RemoveSeconds,
     pub peak_rss_mib: u64,
+    /// The removal's self-checks that tripped ([`see_through_check`]).
+    pub warnings: Vec<Warning>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -168,6 +172,7 @@ pub fn remove(
     let renders = render_all(&fitted.trainer.field, &RenderOptions::default(), &all);
     progress.end();
     let holes = find_unseen(&all, &renders, observers).stats;
+    let warnings: Vec<Warning> = see_through_check(&all, &renders).into_iter().collect();
     for (v, r) in all.iter().zip(&renders) {
         crate::util::atomic::save_image_atomic(
             &crate::scene::io::mask_file(&root.join("renders"), &v.name),
@@ -196,6 +201,7 @@ pub fn remove(
             total: t0.elapsed().as_secs_f64(),
         },
         peak_rss_mib: peak_rss_mib(),
+        warnings,
     };
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::json(out, e))?;
     crate::util::atomic::write_bytes_atomic(&root.join("report.json"), json.as_bytes())?;
