@@ -9,11 +9,7 @@
 //!
 //! Without `--demo` the default demo scene is made in a temporary folder.
 
-#[path = "support/chart.rs"]
-mod chart_support;
-
-use chart_support::{panel, series};
-use plotters::prelude::*;
+use objnerf::util::chart::{layers, series, svg, ChartResult, Panel};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -144,25 +140,15 @@ fn main() {
     eprintln!("wrote {} and field_pareto.svg", json_path.display());
 }
 
-fn chart(result: &Value, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
+fn chart(result: &Value, path: &Path) -> ChartResult<()> {
     let empty = Vec::new();
     let lego = result["lego"].as_array().unwrap_or(&empty);
     let demo = result["demo"].as_array().unwrap_or(&empty);
-    let root = SVGBackend::new(path, (1400, 520)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let parts = root.split_evenly((1, 3));
     let lego_s = series(
         lego,
         |r| r["label"].as_str().unwrap_or("?").to_string(),
         |r| Some((r["train"]["seconds"].as_f64()?, r["test_psnr"].as_f64()?)),
     );
-    panel(
-        &parts[0],
-        "lego: test PSNR vs training time",
-        "training wall seconds (shared 2-core machine)",
-        "test PSNR (dB)",
-        &lego_s,
-    )?;
     let name = |r: &Value| {
         format!(
             "{} {}",
@@ -179,26 +165,32 @@ fn chart(result: &Value, path: &Path) -> Result<(), Box<dyn std::error::Error>> 
             r["report"]["psnr"].as_f64()?,
         ))
     });
-    panel(
-        &parts[1],
-        "demo objects: held-out PSNR",
-        "training wall seconds",
-        "PSNR on white (dB)",
-        &demo_psnr,
-    )?;
     let demo_depth = series(demo, name, |r| {
         Some((
             r["report"]["run"]["seconds"].as_f64()?,
             100.0 * r["report"]["depth_error_fraction"].as_f64()?,
         ))
     });
-    panel(
-        &parts[2],
-        "demo objects: median depth error",
-        "training wall seconds",
-        "% of the box diagonal",
-        &demo_depth,
-    )?;
-    root.present()?;
+    let panels = [
+        Panel::fitted(
+            "lego: test PSNR vs training time",
+            "training wall seconds (shared 2-core machine)",
+            "test PSNR (dB)",
+            layers(lego_s),
+        ),
+        Panel::fitted(
+            "demo objects: held-out PSNR",
+            "training wall seconds",
+            "PSNR on white (dB)",
+            layers(demo_psnr),
+        ),
+        Panel::fitted(
+            "demo objects: median depth error",
+            "training wall seconds",
+            "% of the box diagonal",
+            layers(demo_depth),
+        ),
+    ];
+    std::fs::write(path, svg((1400, 520), 1, &panels)?)?;
     Ok(())
 }

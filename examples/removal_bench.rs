@@ -14,11 +14,8 @@
 
 #[path = "support/bench.rs"]
 mod bench;
-#[path = "support/chart.rs"]
-mod chart_support;
 
-use chart_support::{panel, series, Series};
-use plotters::prelude::*;
+use objnerf::util::chart::{layers, series, svg, ChartResult, Panel};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -224,7 +221,7 @@ fn telea(scene: &Path, segment: &Path, views: &[String], downscale: &str) -> Val
     })
 }
 
-fn chart(result: &Value, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
+fn chart(result: &Value, path: &Path) -> ChartResult<()> {
     let runs = result["runs"].as_array().cloned().unwrap_or_default();
     let name = |r: &Value| {
         if r["fill"] == true {
@@ -235,35 +232,27 @@ fn chart(result: &Value, path: &Path) -> Result<(), Box<dyn std::error::Error>> 
         .to_string()
     };
     let telea = &result["telea"];
-    let with_telea = |mut s: Series, key: &str| {
+    let panel = |title: &str, key: &str| {
+        let mut s = series(&runs, name, |r| {
+            Some((r["train_seconds"].as_f64()?, r[key].as_f64()?))
+        });
         if let (Some(x), Some(y)) = (telea["seconds"].as_f64(), telea[key].as_f64()) {
             s.push(("Telea 2D inpainting (per view)".into(), vec![(x, y)]));
         }
-        s
+        Panel::fitted(
+            title,
+            "training seconds (2-core machine)",
+            "PSNR (dB), held-out views",
+            layers(s),
+        )
     };
-    let root = SVGBackend::new(path, (1100, 480)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let parts = root.split_evenly((1, 2));
-    let hole = series(&runs, name, |r| {
-        Some((r["train_seconds"].as_f64()?, r["hole_psnr"].as_f64()?))
-    });
-    panel(
-        &parts[0],
-        "mug removed: PSNR inside its true mask (+4 px)",
-        "training seconds (2-core machine)",
-        "PSNR (dB), held-out views",
-        &with_telea(hole, "hole_psnr"),
-    )?;
-    let frame = series(&runs, name, |r| {
-        Some((r["train_seconds"].as_f64()?, r["psnr"].as_f64()?))
-    });
-    panel(
-        &parts[1],
-        "mug removed: full-frame PSNR",
-        "training seconds (2-core machine)",
-        "PSNR (dB), held-out views",
-        &with_telea(frame, "psnr"),
-    )?;
-    root.present()?;
+    let panels = [
+        panel(
+            "mug removed: PSNR inside its true mask (+4 px)",
+            "hole_psnr",
+        ),
+        panel("mug removed: full-frame PSNR", "psnr"),
+    ];
+    std::fs::write(path, svg((1100, 480), 1, &panels)?)?;
     Ok(())
 }

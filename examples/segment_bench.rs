@@ -24,6 +24,7 @@ use objnerf::segment::types::{ViewResult, ViewSegmenter};
 use objnerf::segment::{
     ObjectPrompt, ObjectSegmentation, PointPrompt, PropagationOptions, SamViews, ViewStatus,
 };
+use objnerf::util::chart::{palette, svg, ChartResult, Layer, Mark, Panel};
 use objnerf::util::mask::is_object;
 use objnerf::util::mem::peak_rss_mib;
 use objnerf::util::stats::mean;
@@ -361,50 +362,33 @@ fn write_report(
 }
 
 /// One panel per scene: mIoU against wall time, one marker per method.
-fn chart(r: &Report) -> std::result::Result<String, Box<dyn std::error::Error>> {
-    use plotters::prelude::*;
+fn chart(r: &Report) -> ChartResult<String> {
     let scenes: Vec<&str> = {
         let mut s: Vec<&str> = r.results.iter().map(|m| m.scene.as_str()).collect();
         s.dedup();
         s
     };
-    let mut svg = String::new();
-    {
-        let root =
-            SVGBackend::with_string(&mut svg, (480 * scenes.len() as u32, 420)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let panels = root.split_evenly((1, scenes.len()));
-        for (area, scene) in panels.iter().zip(&scenes) {
+    let panels: Vec<Panel> = scenes
+        .iter()
+        .map(|scene| {
             let ms: Vec<&MethodResult> = r.results.iter().filter(|m| m.scene == *scene).collect();
-            let tmax = ms.iter().map(|m| m.wall_s).fold(0.0, f64::max) * 1.2;
-            let lo = ms.iter().map(|m| m.miou).fold(1.0, f64::min);
-            let ylo = (lo - 0.05).clamp(0.0, 0.9);
-            let mut c = ChartBuilder::on(area)
-                .caption(format!("{scene}: mIoU vs wall time"), ("sans-serif", 16))
-                .margin(12)
-                .x_label_area_size(35)
-                .y_label_area_size(50)
-                .build_cartesian_2d(0f64..tmax, ylo..1.0)?;
-            c.configure_mesh()
-                .x_desc("wall time, s (shared 2-core machine)")
-                .y_desc("mIoU")
-                .draw()?;
-            for (m, colour) in ms.iter().zip([
-                RGBColor(31, 119, 180),
-                RGBColor(255, 127, 14),
-                RGBColor(44, 160, 44),
-            ]) {
-                c.draw_series([Circle::new((m.wall_s, m.miou), 6, colour.filled())])?
-                    .label(format!("{} ({:.3})", m.method, m.miou))
-                    .legend(move |(x, y)| Circle::new((x + 8, y), 5, colour.filled()));
-            }
-            c.configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::LowerRight)
-                .draw()?;
-        }
-        root.present()?;
-    }
-    Ok(svg)
+            let layers = ms
+                .iter()
+                .enumerate()
+                .map(|(i, m)| {
+                    let name = format!("{} ({:.3})", m.method, m.miou);
+                    Layer::new(name, palette(i), vec![(m.wall_s, m.miou)]).mark(Mark::Points(6))
+                })
+                .collect();
+            let mut p = Panel::fitted(
+                &format!("{scene}: mIoU vs wall time"),
+                "wall time, s (shared 2-core machine)",
+                "mIoU",
+                layers,
+            );
+            p.y.end = p.y.end.min(1.0);
+            p
+        })
+        .collect();
+    svg((480 * scenes.len() as u32, 420), 1, &panels)
 }

@@ -6,6 +6,7 @@ use super::bench::{git_commit, machine, Machine, Stats};
 use image::RgbImage;
 use objnerf::models::ONNXRUNTIME_VERSION;
 use objnerf::scene::io::read_rgb;
+use objnerf::util::chart::{svg, ChartResult, Layer, Panel, RGBColor};
 use objnerf::Result;
 use std::path::PathBuf;
 
@@ -87,64 +88,38 @@ pub fn chart_svg(
     names: [&str; 2],
     ratio_label: &str,
     threads: usize,
-) -> std::result::Result<String, Box<dyn std::error::Error>> {
-    use plotters::prelude::*;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (900, 420)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let panels = root.split_evenly((1, 2));
-        let blue = RGBColor(31, 119, 180);
-        let orange = RGBColor(255, 127, 14);
-        for (area, (title, ours, py)) in panels.iter().zip(panels_data) {
-            let ms = |v: &Vec<f64>| v.iter().map(|s| s * 1e3).collect::<Vec<_>>();
-            let (o, p) = (ms(&ours.runs), ms(&py.runs));
-            let hi = o.iter().chain(&p).copied().fold(0.0, f64::max) * 1.15 + 1e-6;
-            let n = o.len().max(p.len()).max(1);
-            let mut c = ChartBuilder::on(area)
-                .caption(
-                    format!(
-                        "{title}: {ratio_label} median {:.2} ({threads} threads)",
-                        ours.median / py.median,
-                    ),
-                    ("sans-serif", 16),
-                )
-                .margin(12)
-                .x_label_area_size(30)
-                .y_label_area_size(50)
-                .build_cartesian_2d(0f64..(n as f64 + 1.0), 0f64..hi)?;
-            c.configure_mesh()
-                .x_desc("run")
-                .y_desc("ms")
-                .disable_x_mesh()
-                .draw()?;
-            for (vals, med, colour, name) in [
-                (&o, ours.median * 1e3, blue, names[0]),
-                (&p, py.median * 1e3, orange, names[1]),
-            ] {
-                let pts: Vec<(f64, f64)> = vals
+) -> ChartResult<String> {
+    let colours = [RGBColor(31, 119, 180), RGBColor(255, 127, 14)];
+    let panels: Vec<Panel> = panels_data
+        .iter()
+        .map(|(title, ours, py)| {
+            let mut layers = Vec::new();
+            for ((stats, name), colour) in [(*ours, names[0]), (*py, names[1])]
+                .into_iter()
+                .zip(colours)
+            {
+                let runs: Vec<(f64, f64)> = stats
+                    .runs
                     .iter()
                     .enumerate()
-                    .map(|(i, &v)| (i as f64 + 1.0, v))
+                    .map(|(i, s)| (i as f64 + 1.0, s * 1e3))
                     .collect();
-                c.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(1)))?
-                    .label(name)
-                    .legend(move |(x, y)| Circle::new((x + 8, y), 4, colour.filled()));
-                c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
-                c.draw_series(DashedLineSeries::new(
-                    vec![(0.0, med), (n as f64 + 1.0, med)],
-                    6,
-                    4,
-                    colour.stroke_width(1),
-                ))?;
+                let x = 0.0..runs.len() as f64 + 1.0;
+                layers.push(Layer::new(name, colour, runs));
+                layers.push(Layer::level(None, colour, stats.median * 1e3, &x));
             }
-            c.configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::LowerRight)
-                .draw()?;
-        }
-        root.present()?;
-    }
-    Ok(svg)
+            let mut p = Panel::fitted(
+                &format!(
+                    "{title}: {ratio_label} median {:.2} ({threads} threads)",
+                    ours.median / py.median
+                ),
+                "run",
+                "ms",
+                layers,
+            );
+            p.y.start = 0.0;
+            p
+        })
+        .collect();
+    svg((900, 420), 1, &panels)
 }

@@ -3,6 +3,7 @@
 //! mug and the torus by sphere tracing their signed distance functions, then bisecting the sign
 //! change so that depth is exact to ~1e-9 m (the truth depth maps and tracks rely on it).
 
+use crate::util::lattice::box_corners;
 use glam::{DMat3, DVec3};
 
 /// The standard scene's object names, in id order (id = index; variants add objects after them).
@@ -214,24 +215,7 @@ impl Object {
     pub fn world_bbox(&self) -> (DVec3, DVec3) {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for i in 0..8 {
-            let c = DVec3::new(
-                if i & 1 == 0 {
-                    self.local_min.x
-                } else {
-                    self.local_max.x
-                },
-                if i & 2 == 0 {
-                    self.local_min.y
-                } else {
-                    self.local_max.y
-                },
-                if i & 4 == 0 {
-                    self.local_min.z
-                } else {
-                    self.local_max.z
-                },
-            );
+        for c in box_corners(self.local_min, self.local_max) {
             let w = self.place.to_world(c);
             lo = lo.min(w);
             hi = hi.max(w);

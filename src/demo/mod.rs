@@ -43,6 +43,7 @@ pub use writer::{read_truth, truth_masks, ObjectTruth};
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};
 use crate::scene::{ImageView, Scene, SceneCamera, SourceFormat};
+use crate::util::choice::named_choices;
 use crate::util::{AtomicDir, Rng};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -77,25 +78,10 @@ pub enum DemoLayout {
     Forward,
 }
 
-impl std::str::FromStr for DemoLayout {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "ring" => Ok(DemoLayout::Ring),
-            "forward" => Ok(DemoLayout::Forward),
-            _ => Err(format!("layout must be ring or forward, not '{s}'")),
-        }
-    }
-}
-
-impl std::fmt::Display for DemoLayout {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            DemoLayout::Ring => "ring",
-            DemoLayout::Forward => "forward",
-        })
-    }
-}
+named_choices!(DemoLayout, "layout", {
+    Ring => "ring",
+    Forward => "forward",
+});
 
 impl Default for DemoOptions {
     fn default() -> Self {

@@ -6,6 +6,7 @@
 use super::geometry::{Ray, World, NONE};
 use super::texture::Textures;
 use crate::scene::{Camera, Pose};
+use crate::util::lattice::box_corners;
 use crate::util::Rng;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -218,12 +219,7 @@ fn projected_rect(
 ) -> (i64, i64, i64, i64) {
     let (lo, hi) = world.objects[obj].world_bbox();
     let mut rect = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-    for i in 0..8 {
-        let c = DVec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        );
+    for c in box_corners(lo, hi) {
         let pc = pose.world_to_camera(c);
         match cam.project(pc) {
             Some(p) if pc.z > 1e-3 => {

@@ -1,5 +1,6 @@
 //! A similarity transform: a uniform scale, a rotation and a translation, `x = s R p + t`.
 
+use crate::util::lattice::box_corners;
 use glam::{DMat3, DMat4, DQuat, DVec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,12 +82,7 @@ impl Similarity {
     pub fn apply_box(&self, lo: DVec3, hi: DVec3) -> (DVec3, DVec3) {
         let mut a = DVec3::splat(f64::INFINITY);
         let mut b = DVec3::splat(f64::NEG_INFINITY);
-        for i in 0..8 {
-            let c = DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            );
+        for c in box_corners(lo, hi) {
             let w = self.apply(c);
             a = a.min(w);
             b = b.max(w);

@@ -3,30 +3,14 @@
 
 use super::view::View;
 use crate::error::{Error, Result};
+use crate::util::mask::dilate_bits;
 use glam::Vec3;
 use rayon::prelude::*;
 
 /// A boolean "may be the object" image per view: mask > 0, dilated by `radius` pixels.
-fn dilated_mask(v: &View, radius: i32) -> Vec<bool> {
-    let (w, h) = (v.width as i32, v.height as i32);
+fn dilated_mask(v: &View, radius: usize) -> Vec<bool> {
     let m: Vec<bool> = v.rgba.iter().map(|p| p[3] > 0).collect();
-    let mut tmp = vec![false; m.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let lo = (x - radius).max(0);
-            let hi = (x + radius).min(w - 1);
-            tmp[(y * w + x) as usize] = (lo..=hi).any(|xx| m[(y * w + xx) as usize]);
-        }
-    }
-    let mut out = vec![false; m.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let lo = (y - radius).max(0);
-            let hi = (y + radius).min(h - 1);
-            out[(y * w + x) as usize] = (lo..=hi).any(|yy| tmp[(yy * w + x) as usize]);
-        }
-    }
-    out
+    dilate_bits(&m, [v.width as usize, v.height as usize], radius)
 }
 
 /// Fraction of the views seeing a point that may show it outside their mask before the hull
@@ -47,7 +31,7 @@ pub fn visual_hull(views: &[View], lo: Vec3, hi: Vec3, dims: [usize; 3]) -> Vec<
             let dist = (v.center() - mid).length().max(1e-6);
             let fx = v.focal();
             let r = (0.87 * cell.max_element() * fx / dist).ceil() as i32 + 1;
-            (dilated_mask(v, r.min(64)), r)
+            (dilated_mask(v, r.min(64) as usize), r)
         })
         .collect();
     // A point seen by few views is barely constrained (a long cone behind each silhouette):

@@ -12,6 +12,7 @@ use super::train::{StepStats, TrainConfig, Trainer};
 use super::view::{load_views, MaskSource, View};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
+use crate::util::choice::named_choices;
 use crate::util::mask::{dilate, is_object};
 use image::GrayImage;
 use serde::Serialize;
@@ -28,27 +29,11 @@ pub enum DepthMode {
     Dense,
 }
 
-impl std::str::FromStr for DepthMode {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "none" => Ok(DepthMode::None),
-            "sparse" => Ok(DepthMode::Sparse),
-            "dense" => Ok(DepthMode::Dense),
-            _ => Err(format!("depth must be sparse, dense or none, not '{s}'")),
-        }
-    }
-}
-
-impl std::fmt::Display for DepthMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            DepthMode::None => "none",
-            DepthMode::Sparse => "sparse",
-            DepthMode::Dense => "dense",
-        })
-    }
-}
+named_choices!(DepthMode, "depth", {
+    None => "none",
+    Sparse => "sparse",
+    Dense => "dense",
+});
 
 /// How to train a field on a scene.
 #[derive(Clone, Debug)]

@@ -66,31 +66,19 @@ impl Grid {
     ) -> Grid {
         assert!(dims.iter().all(|&d| d >= 2) && fill.len() == channels);
         let brick_dims = dims.map(|d| d.div_ceil(BRICK));
-        let mut index = vec![NONE; brick_dims.iter().product()];
         let mut bricks = Vec::new();
         for z in 0..brick_dims[2] {
             for y in 0..brick_dims[1] {
                 for x in 0..brick_dims[0] {
                     if keep([x, y, z]) {
-                        index[x + brick_dims[0] * (y + brick_dims[1] * z)] = bricks.len() as u32;
                         bricks.push([x as u32, y as u32, z as u32]);
                     }
                 }
             }
         }
-        let mut data = Vec::with_capacity(bricks.len() * BRICK_VERTICES * channels);
-        for _ in 0..bricks.len() * BRICK_VERTICES {
-            data.extend_from_slice(fill);
-        }
-        Grid {
-            dims,
-            channels,
-            brick_dims,
-            index,
-            bricks,
-            data,
-            fill: fill.to_vec(),
-        }
+        let data = fill.repeat(bricks.len() * BRICK_VERTICES);
+        Grid::from_parts(dims, channels, fill, bricks, data)
+            .expect("bricks listed in (z, y, x) order inside the grid")
     }
 
     /// A grid from saved parts: the allocated bricks' positions (in (z, y, x) order) and their

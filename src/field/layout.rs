@@ -16,6 +16,7 @@
 use super::space::{NdcSpace, Space};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
+use crate::util::choice::named_choices;
 use crate::util::stats::quantile;
 use glam::{DMat3, DVec3, Vec3};
 use serde::Serialize;
@@ -41,31 +42,12 @@ pub enum SpaceChoice {
     Forward,
 }
 
-impl std::str::FromStr for SpaceChoice {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "auto" => Ok(SpaceChoice::Auto),
-            "box" => Ok(SpaceChoice::Box),
-            "unbounded" => Ok(SpaceChoice::Unbounded),
-            "forward" => Ok(SpaceChoice::Forward),
-            _ => Err(format!(
-                "space must be auto, box, unbounded or forward, not '{s}'"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for SpaceChoice {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            SpaceChoice::Auto => "auto",
-            SpaceChoice::Box => "box",
-            SpaceChoice::Unbounded => "unbounded",
-            SpaceChoice::Forward => "forward",
-        })
-    }
-}
+named_choices!(SpaceChoice, "space", {
+    Auto => "auto",
+    Box => "box",
+    Unbounded => "unbounded",
+    Forward => "forward",
+});
 
 /// The capture's layout as the cameras and points show it.
 #[derive(Clone, Debug, Serialize)]

@@ -218,19 +218,8 @@ impl Field {
     fn needed_bricks(grid_dims: [usize; 3], cells: &[[usize; 3]]) -> Vec<bool> {
         let bd = grid_dims.map(|d| d.div_ceil(BRICK));
         let mut need = vec![false; bd.iter().product()];
-        for c in cells {
-            for dz in 0..2 {
-                for dy in 0..2 {
-                    for dx in 0..2 {
-                        let b = [
-                            (c[0] + dx) / BRICK,
-                            (c[1] + dy) / BRICK,
-                            (c[2] + dz) / BRICK,
-                        ];
-                        need[b[0] + bd[0] * (b[1] + bd[1] * b[2])] = true;
-                    }
-                }
-            }
+        for &c in cells {
+            mark_corner_bricks(&mut need, bd, c);
         }
         need
     }

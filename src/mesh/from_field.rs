@@ -12,6 +12,7 @@ use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::model::{sigmoid, Field};
+use crate::util::lattice::face_neighbours;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -262,31 +263,12 @@ pub fn fill_cavities(values: &mut [f32], [nx, ny, nz]: [usize; 3], iso: f32) -> 
         }
     }
     while let Some(i) = stack.pop() {
-        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-        let mut visit = |j: usize| {
+        face_neighbours(i, [nx, ny, nz], |j| {
             if !outside[j] && values[j] <= iso {
                 outside[j] = true;
                 stack.push(j);
             }
-        };
-        if x > 0 {
-            visit(i - 1);
-        }
-        if x + 1 < nx {
-            visit(i + 1);
-        }
-        if y > 0 {
-            visit(i - nx);
-        }
-        if y + 1 < ny {
-            visit(i + nx);
-        }
-        if z > 0 {
-            visit(i - nx * ny);
-        }
-        if z + 1 < nz {
-            visit(i + nx * ny);
-        }
+        });
     }
     let mut filled = 0;
     for (v, out) in values.iter_mut().zip(&outside) {

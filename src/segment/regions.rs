@@ -8,6 +8,7 @@
 //! parts, since each is large or prompted. Tiny holes are decoder speckle (fox's close-ups show a
 //! checkerboard of them), not structure; a mug handle's hole is thousands of pixels.
 
+use crate::util::lattice::face_neighbours;
 use crate::util::mask::is_object;
 use glam::DVec2;
 use image::GrayImage;
@@ -108,25 +109,12 @@ fn label(on: &[bool], w: usize, h: usize) -> (Vec<u32>, Vec<usize>) {
         stack.push(start);
         while let Some(i) = stack.pop() {
             size += 1;
-            let (x, y) = (i % w, i / w);
-            let mut visit = |j: usize| {
+            face_neighbours(i, [w, h, 1], |j| {
                 if on[j] && labels[j] == NONE {
                     labels[j] = l;
                     stack.push(j);
                 }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
-            }
+            });
         }
         sizes.push(size);
     }

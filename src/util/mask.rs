@@ -60,44 +60,47 @@ pub fn area(m: &GrayImage) -> usize {
 /// The mask grown by `radius` pixels (a square neighbourhood; separable max filter), as 0/255.
 pub fn dilate(m: &GrayImage, radius: u32) -> GrayImage {
     let (w, h) = m.dimensions();
-    let r = radius as i64;
     let on: Vec<bool> = m.pixels().map(|p| is_object(p[0])).collect();
-    let mut rows = vec![false; on.len()];
-    for y in 0..h as i64 {
-        let mut last_on = i64::MIN / 2;
-        // Left to right, then right to left: a pixel is on when an on pixel lies within r.
-        for x in 0..w as i64 {
-            if on[(y * w as i64 + x) as usize] {
-                last_on = x;
+    let out = dilate_bits(&on, [w as usize, h as usize], radius as usize);
+    GrayImage::from_raw(w, h, out.iter().map(|&b| if b { 255 } else { 0 }).collect())
+        .expect("one value per pixel")
+}
+
+/// Square dilation of a row-major boolean image of `[w, h]` pixels: on where an on pixel lies
+/// within `radius` in x and y. Two passes (rows, then columns), each O(pixels) whatever the
+/// radius.
+pub fn dilate_bits(on: &[bool], [w, h]: [usize; 2], radius: usize) -> Vec<bool> {
+    let rows = dilate_lines(on, [w, h], radius, 1, w);
+    dilate_lines(&rows, [h, w], radius, w, 1)
+}
+
+/// One pass of [`dilate_bits`]: `lines` lines of `len` samples, sample `k` of line `l` at
+/// `l * line_step + k * step`.
+fn dilate_lines(
+    on: &[bool],
+    [len, lines]: [usize; 2],
+    radius: usize,
+    step: usize,
+    line_step: usize,
+) -> Vec<bool> {
+    let mut out = vec![false; on.len()];
+    for l in 0..lines {
+        let at = |k: usize| l * line_step + k * step;
+        // Forward then backward: a sample is on when an on sample lies within the radius.
+        let mut last_on: Option<usize> = None;
+        for k in 0..len {
+            if on[at(k)] {
+                last_on = Some(k);
             }
-            rows[(y * w as i64 + x) as usize] = x - last_on <= r;
+            out[at(k)] = last_on.is_some_and(|j| k - j <= radius);
         }
-        let mut next_on = i64::MAX / 2;
-        for x in (0..w as i64).rev() {
-            if on[(y * w as i64 + x) as usize] {
-                next_on = x;
+        let mut next_on: Option<usize> = None;
+        for k in (0..len).rev() {
+            if on[at(k)] {
+                next_on = Some(k);
             }
-            let i = (y * w as i64 + x) as usize;
-            rows[i] = rows[i] || next_on - x <= r;
-        }
-    }
-    let mut out = GrayImage::new(w, h);
-    for x in 0..w as i64 {
-        let mut last_on = i64::MIN / 2;
-        let mut col = vec![false; h as usize];
-        for y in 0..h as i64 {
-            if rows[(y * w as i64 + x) as usize] {
-                last_on = y;
-            }
-            col[y as usize] = y - last_on <= r;
-        }
-        let mut next_on = i64::MAX / 2;
-        for y in (0..h as i64).rev() {
-            if rows[(y * w as i64 + x) as usize] {
-                next_on = y;
-            }
-            if col[y as usize] || next_on - y <= r {
-                out.put_pixel(x as u32, y as u32, image::Luma([255]));
+            if next_on.is_some_and(|j| j - k <= radius) {
+                out[at(k)] = true;
             }
         }
     }
@@ -130,5 +133,25 @@ mod tests {
         assert!(is_object(d.get_pixel(2, 1)[0]) && is_object(d.get_pixel(6, 5)[0]));
         assert!(!is_object(d.get_pixel(1, 3)[0]) && !is_object(d.get_pixel(4, 6)[0]));
         assert_eq!(dilate(&m, 0), m);
+    }
+
+    /// The two-pass dilation equals the definition (any on pixel in the square) on a
+    /// non-square image with pixels at the borders.
+    #[test]
+    fn dilate_bits_matches_the_square_neighbourhood() {
+        let (w, h) = (13usize, 6usize);
+        let mut rng = crate::util::Rng::new(3);
+        let on: Vec<bool> = (0..w * h).map(|_| rng.f32() < 0.08).collect();
+        for r in [0usize, 1, 3] {
+            let fast = dilate_bits(&on, [w, h], r);
+            for y in 0..h {
+                for x in 0..w {
+                    let want = (y.saturating_sub(r)..=(y + r).min(h - 1)).any(|yy| {
+                        (x.saturating_sub(r)..=(x + r).min(w - 1)).any(|xx| on[yy * w + xx])
+                    });
+                    assert_eq!(fast[y * w + x], want, "r {r} at ({x}, {y})");
+                }
+            }
+        }
     }
 }

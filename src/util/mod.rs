@@ -1,10 +1,13 @@
-//! Small shared helpers, used by every stage: atomic file output, hashes, binary masks,
-//! inpainting, memory, paths, progress reporting, a seeded random generator, order statistics,
+//! Small shared helpers, used by every stage: atomic file output, benchmark charts, named option enums, hashes, binary masks,
+//! inpainting, grid neighbours, memory, paths, progress reporting, a seeded random generator, order statistics,
 //! the self-checks' warnings.
 
 pub mod atomic;
+pub mod chart;
+pub mod choice;
 pub mod digest;
 pub mod inpaint;
+pub mod lattice;
 pub mod machine;
 pub mod mask;
 pub mod mem;

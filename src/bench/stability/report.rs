@@ -8,8 +8,9 @@ use super::outcome::{CaseResult, StabilityReport, Verdict};
 use super::score::{ObjectScores, MIOU_FLOOR, PSNR_FLOOR};
 use crate::error::{Error, Result};
 use crate::util::atomic::write_bytes_atomic;
-use plotters::prelude::*;
+use crate::util::chart::{svg, ChartResult, Layer, Mark, Panel, RGBColor, SeriesLabelPosition};
 use std::fmt::Write;
+use std::ops::Range;
 use std::path::Path;
 
 pub fn write_all(r: &StabilityReport, out: &Path) -> Result<()> {
@@ -172,14 +173,11 @@ const GROUPS: [&str; 6] = [
 
 /// Success rate (share of views with a good mask; share of novel views with a good render)
 /// against strength, a panel per perturbation, the unperturbed baseline at its strength.
-fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn std::error::Error>> {
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (1500, 820)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let areas = root.split_evenly((2, 3));
-        let baseline = cases.iter().find(|c| c.spec.id == "baseline");
-        for (area, group) in areas.iter().zip(GROUPS) {
+fn success_chart(cases: &[CaseResult]) -> ChartResult<String> {
+    let baseline = cases.iter().find(|c| c.spec.id == "baseline");
+    let panels: Vec<Panel> = GROUPS
+        .iter()
+        .map(|&group| {
             // The demo's cases (lego's are in the table).
             let mut pts: Vec<(f64, &CaseResult)> = cases
                 .iter()
@@ -188,7 +186,7 @@ fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn st
                 .collect();
             if let Some(b) = baseline {
                 let s = match group {
-                    "views" => b.objects.first().map_or(36.0, |_| 36.0),
+                    "views" => 36.0,
                     "objects at once" => 1.0,
                     _ => 0.0,
                 };
@@ -199,56 +197,48 @@ fn success_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn st
                 x if x > 0.0 => x * 1.1,
                 _ => 1.0,
             };
-            // Room above 1 for the legend.
-            let mut c = ChartBuilder::on(area)
-                .caption(group, ("sans-serif", 18))
-                .margin(12)
-                .x_label_area_size(34)
-                .y_label_area_size(44)
-                .build_cartesian_2d(0.0..x1, -0.02..1.35)?;
-            c.configure_mesh()
-                .x_desc("strength")
-                .y_desc("success rate")
-                .draw()?;
             let series: [(&str, RGBColor, Figure); 2] = [
-                ("segment: views with mask IoU >= floor", BLUE, |o| {
-                    o.segment_success
-                }),
-                ("field: novel views with PSNR >= floor", RED, |o| {
-                    o.field_success
-                }),
+                (
+                    "segment: views with mask IoU >= floor",
+                    RGBColor(0, 0, 255),
+                    |o| o.segment_success,
+                ),
+                (
+                    "field: novel views with PSNR >= floor",
+                    RGBColor(255, 0, 0),
+                    |o| o.field_success,
+                ),
             ];
-            for (name, col, get) in series {
-                let line: Vec<(f64, f64)> = pts
-                    .iter()
-                    .map(|(x, c)| {
-                        (
-                            *x,
-                            if c.error.is_some() {
+            let layers = series
+                .into_iter()
+                .map(|(name, colour, get)| {
+                    let line = pts
+                        .iter()
+                        .filter_map(|(x, c)| {
+                            let y = if c.error.is_some() {
                                 Some(0.0)
                             } else {
                                 mean_of(c, get)
-                            },
-                        )
-                    })
-                    .filter_map(|(x, y)| y.map(|y| (x, y)))
-                    .collect();
-                c.draw_series(LineSeries::new(line.clone(), col.stroke_width(2)))?
-                    .label(name)
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2))
-                    });
-                c.draw_series(line.iter().map(|&q| Circle::new(q, 4, col.filled())))?;
+                            };
+                            y.map(|y| (*x, y))
+                        })
+                        .collect();
+                    Layer::new(name, colour, line)
+                })
+                .collect();
+            Panel {
+                title: group.to_string(),
+                x_label: "strength".into(),
+                y_label: "success rate".into(),
+                x: 0.0..x1,
+                // Room above 1 for the legend.
+                y: -0.02..1.35,
+                layers,
+                legend: SeriesLabelPosition::UpperRight,
             }
-            c.configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::UpperRight)
-                .draw()?;
-        }
-        root.present()?;
-    }
-    Ok(svg)
+        })
+        .collect();
+    svg((1500, 820), 2, &panels)
 }
 
 fn verdict_colour(v: Verdict) -> RGBColor {
@@ -263,44 +253,34 @@ fn verdict_colour(v: Verdict) -> RGBColor {
 
 /// Accuracy against time: mIoU and object PSNR against each case's wall seconds, coloured by
 /// verdict.
-fn accuracy_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn std::error::Error>> {
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (1400, 520)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let areas = root.split_evenly((1, 2));
-        let panels: [(&str, Figure, (f64, f64), f64); 2] = [
-            (
-                "mask mIoU against case time",
-                |o| o.miou,
-                (0.0, 1.0),
-                MIOU_FLOOR,
-            ),
-            (
-                "object PSNR (dB) against case time",
-                |o| o.psnr,
-                (8.0, 26.0),
-                PSNR_FLOOR,
-            ),
-        ];
-        let t1 = cases.iter().map(|c| c.seconds).fold(1.0f64, f64::max) * 1.1;
-        for (area, (title, get, (y0, y1), floor)) in areas.iter().zip(panels) {
-            let mut c = ChartBuilder::on(area)
-                .caption(title, ("sans-serif", 18))
-                .margin(12)
-                .x_label_area_size(34)
-                .y_label_area_size(44)
-                .build_cartesian_2d(0.0..t1, y0..y1)?;
-            c.configure_mesh()
-                .x_desc("wall seconds (shared 2-core machine)")
-                .y_desc(title.split(" against").next().unwrap_or(""))
-                .draw()?;
-            c.draw_series(LineSeries::new(
-                [(0.0, floor), (t1, floor)],
-                BLACK.mix(0.5).stroke_width(1),
-            ))?
-            .label("floor")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.mix(0.5)));
+fn accuracy_chart(cases: &[CaseResult]) -> ChartResult<String> {
+    let t1 = cases.iter().map(|c| c.seconds).fold(1.0f64, f64::max) * 1.1;
+    let panels: [(&str, &str, Figure, Range<f64>, f64); 2] = [
+        (
+            "mask mIoU against case time",
+            "mask mIoU",
+            |o| o.miou,
+            0.0..1.0,
+            MIOU_FLOOR,
+        ),
+        (
+            "object PSNR (dB) against case time",
+            "object PSNR (dB)",
+            |o| o.psnr,
+            8.0..26.0,
+            PSNR_FLOOR,
+        ),
+    ];
+    let panels: Vec<Panel> = panels
+        .into_iter()
+        .map(|(title, y_label, get, y, floor)| {
+            let x = 0.0..t1;
+            let mut layers = vec![Layer::level(
+                Some("floor"),
+                RGBColor(128, 128, 128),
+                floor,
+                &x,
+            )];
             for v in [
                 Verdict::Ok,
                 Verdict::FalseAlarm,
@@ -308,26 +288,25 @@ fn accuracy_chart(cases: &[CaseResult]) -> std::result::Result<String, Box<dyn s
                 Verdict::Silent,
                 Verdict::NotScored,
             ] {
-                let col = verdict_colour(v);
                 let pts: Vec<(f64, f64)> = cases
                     .iter()
                     .filter(|c| c.verdict == v)
-                    .filter_map(|c| mean_of(c, get).map(|y| (c.seconds, y.clamp(y0, y1))))
+                    .filter_map(|c| mean_of(c, get).map(|y| (c.seconds, y)))
                     .collect();
-                if pts.is_empty() {
-                    continue;
+                if !pts.is_empty() {
+                    layers.push(Layer::new(v.name(), verdict_colour(v), pts).mark(Mark::Points(4)));
                 }
-                c.draw_series(pts.iter().map(|&q| Circle::new(q, 4, col.filled())))?
-                    .label(v.name())
-                    .legend(move |(x, y)| Circle::new((x + 8, y), 4, col.filled()));
             }
-            c.configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::LowerRight)
-                .draw()?;
-        }
-        root.present()?;
-    }
-    Ok(svg)
+            Panel {
+                title: title.to_string(),
+                x_label: "wall seconds (shared 2-core machine)".into(),
+                y_label: y_label.into(),
+                x,
+                y,
+                layers,
+                legend: SeriesLabelPosition::LowerRight,
+            }
+        })
+        .collect();
+    svg((1400, 520), 1, &panels)
 }

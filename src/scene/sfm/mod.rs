@@ -103,6 +103,14 @@ pub fn resolve_input(input: &Path, force_reconstruct: bool) -> Result<SfmInput> 
     }
 }
 
+/// A scratch folder for COLMAP's database and staged images, removed when dropped.
+fn work_dir() -> Result<tempfile::TempDir> {
+    tempfile::Builder::new()
+        .prefix("objnerf-sfm-")
+        .tempdir()
+        .map_err(|e| Error::io(std::env::temp_dir(), e))
+}
+
 /// Fail early (before minutes of COLMAP) when the output folder would be refused at the end.
 fn check_out(out: &Path, opts: &SfmOptions) -> Result<()> {
     drop(crate::util::AtomicDir::new(out, opts.overwrite)?);

@@ -2,7 +2,7 @@
 //! images without poses.
 
 use super::colmap_run::{colmap_program, extract_and_match, map_points, s, MatchPlan, Steps};
-use super::{check_out, finish, rename_and_rescale, stage_images, SfmOptions, SfmReport};
+use super::{check_out, finish, rename_and_rescale, stage_images, work_dir, SfmOptions, SfmReport};
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap;
 use crate::scene::io::is_image;
@@ -37,10 +37,7 @@ pub fn reconstruct(
             ),
         ));
     }
-    let work = tempfile::Builder::new()
-        .prefix("objnerf-sfm-")
-        .tempdir()
-        .map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let work = work_dir()?;
     let log = work.path().join("colmap.log");
     let staged = stage_images(&paths, work.path(), opts.downscale)?;
     let steps = Steps::new(progress);

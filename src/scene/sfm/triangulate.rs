@@ -4,7 +4,9 @@
 use super::colmap_run::{
     colmap_program, database_ids, extract_and_match, map_points, s, MatchPlan, Steps,
 };
-use super::{check_out, finish, image_root, relative_name, rename_and_rescale, stage_images};
+use super::{
+    check_out, finish, image_root, relative_name, rename_and_rescale, stage_images, work_dir,
+};
 use super::{SfmOptions, SfmReport};
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};
@@ -26,10 +28,7 @@ pub fn triangulate(
     let program = colmap_program()?;
     check_out(out, opts)?;
     let root = image_root(scene)?;
-    let work = tempfile::Builder::new()
-        .prefix("objnerf-sfm-")
-        .tempdir()
-        .map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let work = work_dir()?;
     let log = work.path().join("colmap.log");
     let paths: Vec<PathBuf> = scene.images.iter().map(|im| im.path.clone()).collect();
     let staged = stage_images(&paths, work.path(), opts.downscale)?;
