@@ -78,6 +78,8 @@ fn psnr(frames: &[Rgb], truth: &[image::RgbImage]) -> f64 {
 fn main() -> Res<()> {
     let args: Vec<String> = std::env::args().collect();
     let fields_dir = PathBuf::from(arg(&args, "--fields").unwrap_or("target/edit-fields".into()));
+    // The edit files it writes live in a temporary folder: models are named absolutely.
+    let fields_dir = std::path::absolute(&fields_dir)?;
     let out = PathBuf::from(arg(&args, "--out").unwrap_or("examples/results".into()));
     let machine_start = machine();
     let f = ensure_edit_fields(&fields_dir, &mut |m| eprintln!("{m}"))?;
