@@ -36,9 +36,11 @@ pub struct TrainCmd {
     /// Stop after this many seconds of training.
     #[arg(long)]
     time_budget: Option<f64>,
-    /// Depth supervision: sparse (the object's 3D points), dense (depth images) or none.
-    #[arg(long, default_value_t = FitOptions::default().depth)]
-    depth: DepthMode,
+    /// Depth supervision: sparse (the sparse 3D points), dense (depth images) or none. Default:
+    /// none for an object field, sparse for a scene field (without it a scene field has no
+    /// geometry to hold its views together).
+    #[arg(long)]
+    depth: Option<DepthMode>,
     #[arg(long, default_value_t = FitOptions::default().seed)]
     seed: u64,
     /// Most optimisation steps (the learning-rate schedule spans them).
@@ -65,7 +67,11 @@ impl TrainCmd {
         let opts = FitOptions {
             downscale: self.downscale,
             time_budget: self.time_budget,
-            depth: self.depth,
+            depth: self.depth.unwrap_or(if self.scene_field {
+                SceneFitOptions::default().fit.depth
+            } else {
+                FitOptions::default().depth
+            }),
             seed: self.seed,
             steps: self.steps,
             setup: SetupConfig {

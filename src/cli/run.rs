@@ -52,6 +52,10 @@ pub struct ExtractCmd {
     /// Turntable frames per object.
     #[arg(long, default_value_t = TurntableOptions::default().frames)]
     pub frames: usize,
+    /// Leave every N-th view out of training (views N/2, N/2 + N, ...), to score the field on
+    /// them; 0: keep a few ok views back to check each field on instead.
+    #[arg(long, default_value_t = ExtractOptions::default().hold_out_every)]
+    pub hold_out_every: usize,
     /// Replace the run folder if it exists.
     #[arg(long)]
     pub overwrite: bool,
@@ -64,6 +68,7 @@ impl ExtractCmd {
     fn options(&self) -> ExtractOptions {
         let mut o = ExtractOptions {
             overwrite: self.overwrite,
+            hold_out_every: self.hold_out_every,
             ..Default::default()
         };
         o.fit.downscale = self.downscale;
