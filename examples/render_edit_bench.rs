@@ -21,6 +21,7 @@ use objnerf::pipeline::render_edit::RenderEditOptions;
 use objnerf::render::composite::{render_frame, Composite};
 use objnerf::render::frames::Passes;
 use objnerf::scene::camera_path::CameraPath;
+use objnerf::util::chart::{layers, series, svg, Layer, Panel, RGBColor, SeriesLabelPosition};
 use objnerf::util::mem::peak_rss_mib;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -179,120 +180,57 @@ fn main() -> Res<()> {
 }
 
 fn chart(speed: &[serde_json::Value], sweep: &[serde_json::Value]) -> Res<String> {
-    use plotters::prelude::*;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (1100, 420)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let (left, right) = root.split_horizontally(520);
-        // Frames per second, one bar per size and configuration.
-        let bars: Vec<(String, f64)> = speed
-            .iter()
-            .map(|s| {
-                (
-                    format!(
-                        "{} {}",
-                        s["size"].as_str().unwrap_or(""),
-                        s["config"].as_str().unwrap_or("")
-                    ),
-                    s["frames_per_second"].as_f64().unwrap_or(0.0),
-                )
-            })
-            .collect();
-        let hi = bars.iter().map(|b| b.1).fold(0.0, f64::max).max(5.0) * 1.15;
-        let mut c = ChartBuilder::on(&left)
-            .caption("render-edit: frames per second (wall)", ("sans-serif", 17))
-            .margin(12)
-            .x_label_area_size(30)
-            .y_label_area_size(230)
-            .build_cartesian_2d(0.0..hi, (0..bars.len()).into_segmented())?;
-        c.configure_mesh()
-            .disable_y_mesh()
-            .y_label_formatter(&|v| match v {
-                SegmentValue::CenterOf(i) => bars.get(*i).map(|b| b.0.clone()).unwrap_or_default(),
-                _ => String::new(),
-            })
-            .x_desc("frames / s")
-            .draw()?;
-        c.draw_series(bars.iter().enumerate().map(|(i, (_, v))| {
-            Rectangle::new(
-                [
-                    (0.0, SegmentValue::Exact(i)),
-                    (*v, SegmentValue::Exact(i + 1)),
-                ],
-                BLUE.mix(0.6).filled(),
-            )
-        }))?;
-        c.draw_series(std::iter::once(PathElement::new(
-            vec![
-                (5.0, SegmentValue::Exact(0)),
-                (5.0, SegmentValue::Exact(bars.len())),
-            ],
-            RED,
-        )))?
-        .label("5 frames/s")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
-        // PSNR against seconds per frame, one series per alpha threshold.
-        let pts = |a: f64| -> Vec<(f64, f64, f64)> {
-            sweep
-                .iter()
-                .filter(|s| (s["alpha_thresh"].as_f64().unwrap_or(0.0) - a).abs() < 1e-12)
-                .map(|s| {
-                    (
-                        s["cpu_s_per_frame"].as_f64().unwrap_or(0.0),
-                        s["psnr"].as_f64().unwrap_or(0.0),
-                        s["step"].as_f64().unwrap_or(0.0),
-                    )
-                })
-                .collect()
-        };
-        let alphas: Vec<f64> = {
-            let mut v: Vec<f64> = sweep
-                .iter()
-                .filter_map(|s| s["alpha_thresh"].as_f64())
-                .collect();
-            v.dedup();
-            v
-        };
-        let xmax = sweep
-            .iter()
-            .filter_map(|s| s["cpu_s_per_frame"].as_f64())
-            .fold(0.0, f64::max)
-            * 1.15;
-        let (ylo, yhi) = sweep
-            .iter()
-            .filter_map(|s| s["psnr"].as_f64())
-            .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-        let mut c = ChartBuilder::on(&right)
-            .caption(
-                "PSNR against CPU seconds per frame (320x240, bg + 1)",
-                ("sans-serif", 17),
-            )
-            .margin(12)
-            .x_label_area_size(35)
-            .y_label_area_size(45)
-            .build_cartesian_2d(0.0..xmax.max(0.1), (ylo - 0.5)..(yhi + 0.5))?;
-        c.configure_mesh()
-            .x_desc("CPU s / frame")
-            .y_desc("PSNR dB")
-            .draw()?;
-        for (i, a) in alphas.iter().enumerate() {
-            let colour = Palette99::pick(i).to_rgba();
-            let p = pts(*a);
-            c.draw_series(LineSeries::new(p.iter().map(|q| (q.0, q.1)), colour))?
-                .label(format!("alpha threshold {a}"))
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour));
-            c.draw_series(
-                p.iter()
-                    .map(|q| Circle::new((q.0, q.1), 3, colour.filled())),
-            )?;
-            c.draw_series(
-                p.iter()
-                    .map(|q| Text::new(format!("step {}", q.2), (q.0, q.1), ("sans-serif", 11))),
-            )?;
+    // Frames per second against the number of objects over the background, a line per size.
+    let objects = |c: &str| {
+        if c.contains("4 objects") {
+            4.0
+        } else if c.contains("1 object") {
+            1.0
+        } else {
+            0.0
         }
-        c.configure_series_labels().border_style(BLACK).draw()?;
-        root.present()?;
-    }
-    Ok(svg)
+    };
+    let fps = series(
+        speed,
+        |s| s["size"].as_str().unwrap_or("?").to_string(),
+        |s| {
+            Some((
+                objects(s["config"].as_str()?),
+                s["frames_per_second"].as_f64()?,
+            ))
+        },
+    );
+    let mut left = Panel::fitted(
+        "render-edit: frames per second (wall)",
+        "objects over the background field",
+        "frames / s",
+        layers(fps),
+    );
+    left.y.start = 0.0;
+    left.layers.push(Layer::level(
+        Some("5 frames/s"),
+        RGBColor(200, 0, 0),
+        5.0,
+        &left.x,
+    ));
+    left.legend = SeriesLabelPosition::UpperRight;
+    // Quality against cost for the sample step, a line per alpha threshold (steps 0.5 .. 2 from
+    // right to left).
+    let sweep_series = series(
+        sweep,
+        |s| {
+            format!(
+                "alpha threshold {:.0e}",
+                s["alpha_thresh"].as_f64().unwrap_or(0.0)
+            )
+        },
+        |s| Some((s["cpu_s_per_frame"].as_f64()?, s["psnr"].as_f64()?)),
+    );
+    let right = Panel::fitted(
+        "PSNR against CPU s per frame (320x240, bg + 1; step 2 left .. 0.5 right)",
+        "CPU s / frame",
+        "PSNR dB",
+        layers(sweep_series),
+    );
+    Ok(svg((1100, 420), 1, &[left, right])?)
 }
