@@ -232,5 +232,5 @@ fn chart(speed: &[serde_json::Value], sweep: &[serde_json::Value]) -> Res<String
         "PSNR dB",
         layers(sweep_series),
     );
-    Ok(svg((1100, 420), 1, &[left, right])?)
+    svg((1100, 420), 1, &[left, right])
 }
