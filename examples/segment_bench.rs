@@ -90,15 +90,6 @@ fn timed<T>(
     ))
 }
 
-fn click(scene: &Scene, name: &str, view: &str, xy: [f64; 2]) -> Result<ObjectPrompt> {
-    Ok(ObjectPrompt {
-        name: name.into(),
-        view: scene.find_image(view)?,
-        points: vec![PointPrompt { xy, positive: true }],
-        bbox: None,
-    })
-}
-
 /// Per-object truth masks and per-view visible fractions (None: every view counts as visible).
 struct Truth {
     masks: Vec<Vec<image::GrayImage>>,
@@ -260,7 +251,7 @@ fn main() -> Result<()> {
     let truths = read_truth(&scene_dir)?;
     let prompts = truths
         .iter()
-        .map(|t| click(&scene, &t.name, &t.view, t.click))
+        .map(|t| ObjectPrompt::click(&scene, &t.name, &t.view, t.click))
         .collect::<Result<Vec<_>>>()?;
     let truth = Truth {
         masks: truths
@@ -300,7 +291,7 @@ fn main() -> Result<()> {
             masks: vec![alpha_truth(&lego)?],
             visible: vec![None],
         };
-        let prompts = [click(&lego, "lego", "r_0", [397.5, 492.5])?];
+        let prompts = [ObjectPrompt::click(&lego, "lego", "r_0", [397.5, 492.5])?];
         results.extend(compare(&models, "lego", &lego, &prompts, &truth)?);
     }
 

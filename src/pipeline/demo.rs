@@ -10,7 +10,7 @@ use crate::field::{eval::evaluate, load_views, MaskSource, RenderOptions};
 use crate::sam::Segmenter;
 use crate::scene::io::{mask_file, read_mask};
 use crate::scene::Scene;
-use crate::segment::{ObjectPrompt, PointPrompt};
+use crate::segment::ObjectPrompt;
 use crate::util::mask::iou;
 use crate::util::Progress;
 use serde::Serialize;
@@ -73,15 +73,7 @@ pub fn prepare_demo(out: &Path, object: &str) -> Result<DemoSetup> {
             ))
         })?;
     let scene = Scene::load(&scene_dir)?;
-    let prompt = ObjectPrompt {
-        name: object.to_string(),
-        view: scene.find_image(&truth.view)?,
-        points: vec![PointPrompt {
-            xy: truth.click,
-            positive: true,
-        }],
-        bbox: None,
-    };
+    let prompt = ObjectPrompt::click(&scene, object, &truth.view, truth.click)?;
     Ok(DemoSetup {
         scene_dir,
         scene,

@@ -115,6 +115,18 @@ pub struct ObjectPrompt {
     pub bbox: Option<[f64; 4]>,
 }
 
+impl ObjectPrompt {
+    /// One positive click at `xy` (pixels) in the view `view` names (as `Scene::find_image`).
+    pub fn click(scene: &Scene, name: &str, view: &str, xy: [f64; 2]) -> Result<ObjectPrompt> {
+        Ok(ObjectPrompt {
+            name: name.to_string(),
+            view: scene.find_image(view)?,
+            points: vec![PointPrompt { xy, positive: true }],
+            bbox: None,
+        })
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ViewStatus {

@@ -14,7 +14,7 @@ use crate::scene::io::{mask_file, read_mask};
 use crate::scene::Scene;
 use crate::segment::propagate::propagate_objects;
 use crate::segment::run::segmentation_warnings;
-use crate::segment::{ObjectPrompt, PointPrompt, PropagationOptions, SamViews, ViewStatus};
+use crate::segment::{ObjectPrompt, PropagationOptions, SamViews, ViewStatus};
 use crate::util::machine::cpu_seconds;
 use crate::util::mem::{peak_rss_mib, reset_peak_rss};
 use crate::util::{Rng, Silent, Warning};
@@ -140,15 +140,6 @@ pub fn run_case(
 
 type Outcome = (Vec<ObjectScores>, Vec<Warning>);
 
-fn prompt(scene: &Scene, name: &str, view: &str, xy: [f64; 2]) -> Result<ObjectPrompt> {
-    Ok(ObjectPrompt {
-        name: name.to_string(),
-        view: scene.find_image(view)?,
-        points: vec![PointPrompt { xy, positive: true }],
-        bbox: None,
-    })
-}
-
 fn run_extract(
     scene: &Scene,
     prep: &Prepared,
@@ -164,7 +155,7 @@ fn run_extract(
                 .clicks
                 .get(o)
                 .ok_or_else(|| Error::invalid(format!("no object '{o}' in the subject")))?;
-            prompt(scene, o, view, *xy)
+            ObjectPrompt::click(scene, o, view, *xy)
         })
         .collect::<Result<Vec<_>>>()?;
     let mut eo = ExtractOptions {
@@ -309,7 +300,7 @@ fn run_click(
         .ok_or_else(|| Error::invalid("the subject has no mug"))?;
     let xy = click_point(prep, kind, index, opts.seed)
         .ok_or_else(|| Error::invalid("no pixel to click"))?;
-    let p = prompt(scene, "mug", view, xy)?;
+    let p = ObjectPrompt::click(scene, "mug", view, xy)?;
     let mut views = SamViews::new(seg);
     let objs = propagate_objects(scene, &[p], &mut views, &PropagationOptions::default())?;
     let warnings = segmentation_warnings(scene, &objs);
