@@ -154,6 +154,16 @@ impl TrainCmd {
             r.memory_bytes as f64 / 1048576.0,
             self.out.display()
         );
+        if let Some(c) = &r.scene_fit {
+            eprintln!(
+                "fit to {} of its training views: {:.2} dB; most see-through: {} ({:.2}% of its pixels)",
+                c.views,
+                c.psnr,
+                c.see_through_view,
+                100.0 * c.see_through
+            );
+            super::print_warnings(&r.warnings);
+        }
         Ok(())
     }
 }

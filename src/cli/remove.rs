@@ -97,6 +97,15 @@ impl RemoveCmd {
             r.holes.iter().filter(|h| h.hole_px > 0).count(),
             100.0 * unseen as f64 / hole.max(1) as f64
         );
+        if let Some(c) = &r.train.scene_fit {
+            println!(
+                "fit to its {} training views (outside the holes): {:.2} dB; most see-through: {} ({:.2}% of its pixels)",
+                c.views,
+                c.psnr,
+                c.see_through_view,
+                100.0 * c.see_through
+            );
+        }
         if let Some(s) = &r.scores {
             println!(
                 "against the truth ({} views): PSNR {:.2} dB; inside the objects' masks (+{} px): {}",

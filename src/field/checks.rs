@@ -2,6 +2,7 @@
 //! views it never trained on (PSNR over the object's box in a few held-out views, against their
 //! masked photos), opacity it puts outside the object's masks there (floaters), and whether
 //! training diverged or was cut short by its time budget.
+//! A scene field's checks are in [`super::scene_checks`].
 
 use super::eval::{psnr, render_view, truth_on};
 use super::fit::TrainReport;
@@ -220,6 +221,8 @@ mod tests {
             occupied_cells: 0,
             depth_targets: 0,
             finest: None,
+            scene_fit: None,
+            warnings: Vec::new(),
         }
     }
 

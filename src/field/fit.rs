@@ -7,6 +7,7 @@ use super::depth::{add_dense_depth, add_sparse_depth};
 use super::io::Model;
 use super::layout::{choose_space, SpaceChoice};
 use super::rays::RaySet;
+use super::scene_checks::{check_scene_fit, measure_scene_fit, SceneFitCheck};
 use super::session::{prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule};
 use super::train::{StepStats, TrainConfig, Trainer};
 use super::view::{load_views, MaskSource, View};
@@ -14,6 +15,7 @@ use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::util::choice::named_choices;
 use crate::util::mask::{dilate, is_object};
+use crate::util::warnings::Warning;
 use image::GrayImage;
 use serde::Serialize;
 use std::sync::Arc;
@@ -79,6 +81,13 @@ pub struct TrainReport {
     /// The finest stage's grid: resolution, bricks, bytes per brick and why (None when training
     /// ended before it).
     pub finest: Option<super::train::FinestStage>,
+    /// A scene field's fit to its own training views ([`SceneFit::check_fit`]; None for an
+    /// object field, whose checks hold views back).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene_fit: Option<SceneFitCheck>,
+    /// The scene fit's self-checks that tripped.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<Warning>,
 }
 
 /// A trained field with its optimiser state, and the report.
@@ -129,6 +138,8 @@ pub fn fit_scene(
         occupied_cells: trainer.field.occupied_cells(),
         depth_targets,
         finest: trainer.finest.clone(),
+        scene_fit: None,
+        warnings: Vec::new(),
     };
     Ok(Fitted { trainer, report })
 }
@@ -190,7 +201,7 @@ impl Default for SceneFitOptions {
             space: SpaceChoice::Auto,
             // The sparse points' depths keep a scene's surfaces where they are: without them
             // the demo scene's held-out views fell from 23.7 to 17.8 dB at 160x120 (see
-            // examples/results/scene_field.md).
+            // ARCHITECTURE.md; full-resolution runs in examples/results/scene_field.md).
             fit: FitOptions {
                 depth: DepthMode::Sparse,
                 ..FitOptions::default()
@@ -210,6 +221,9 @@ impl Default for SceneFitOptions {
     }
 }
 
+/// Training views a whole-scene field is checked on after training ([`SceneFit::check_fit`]).
+pub const SCENE_FIT_VIEWS: usize = 8;
+
 /// Train a scene field on every view of `scene` (less `opts.fit.exclude_views`): RGB is the
 /// target everywhere except under the removed objects' dilated masks. Returns the trained field
 /// with the space setup's explanation in its report.
@@ -220,6 +234,7 @@ pub fn fit_scene_field(
 ) -> Result<Fitted> {
     let mut fit = SceneFit::new(scene, opts)?;
     fit.train(&StopRule::for_budget(opts.fit.time_budget), progress);
+    fit.check_fit(SCENE_FIT_VIEWS);
     Ok(fit.finish())
 }
 
@@ -233,6 +248,8 @@ pub struct SceneFit {
     setup: SetupReport,
     depth_targets: usize,
     runs: Vec<RunSummary>,
+    fit_check: Option<SceneFitCheck>,
+    warnings: Vec<Warning>,
 }
 
 impl SceneFit {
@@ -284,6 +301,8 @@ impl SceneFit {
             setup,
             depth_targets,
             runs: Vec::new(),
+            fit_check: None,
+            warnings: Vec::new(),
         })
     }
 
@@ -297,6 +316,23 @@ impl SceneFit {
     /// Seconds trained so far, over every phase.
     pub fn seconds(&self) -> f64 {
         self.runs.iter().map(|r| r.seconds).sum()
+    }
+
+    /// Check the field on up to `max_views` of its training views, spread over the capture, and
+    /// keep the result and its warnings for the report.
+    pub fn check_fit(&mut self, max_views: usize) -> &[Warning] {
+        let n = self.views.len();
+        let step = n.div_ceil(max_views.max(1)).max(1);
+        let views: Vec<View> = self.views.iter().step_by(step).cloned().collect();
+        let renders = super::hole::render_all(
+            &self.trainer.field,
+            &super::render::RenderOptions::default(),
+            &views,
+        );
+        let c = measure_scene_fit(&views, &renders);
+        self.warnings = check_scene_fit(&c);
+        self.fit_check = Some(c);
+        &self.warnings
     }
 
     /// Rebuild the training rays after the views' loss masks or depth targets changed.
@@ -321,6 +357,8 @@ impl SceneFit {
             occupied_cells: t.field.occupied_cells(),
             depth_targets: self.depth_targets,
             finest: t.finest.clone(),
+            scene_fit: self.fit_check,
+            warnings: self.warnings,
         };
         Fitted { trainer: t, report }
     }

@@ -52,6 +52,7 @@ pub mod layout;
 pub mod model;
 pub mod rays;
 pub mod render;
+pub mod scene_checks;
 pub mod session;
 pub mod space;
 pub mod train;

@@ -20,6 +20,7 @@ use crate::field::holdout::is_held_out;
 use crate::field::hole::{
     clear_removed_volume, fill_unseen, find_unseen, render_all, see_through_check, ViewHole,
 };
+use crate::field::scene_checks::{check_scene_fit, measure_scene_fit};
 use crate::field::session::StopRule;
 use crate::field::{model_notes, FieldKind, RenderOptions, SceneFit, SceneFitOptions, TrainReport};
 use crate::scene::io::read_mask;
@@ -98,7 +99,8 @@ pub struct RemoveReport {
     pub scores: Option<RemovalScores>,
     pub seconds: RemoveSeconds,
     pub peak_rss_mib: u64,
-    /// The removal's self-checks that tripped ([`see_through_check`]).
+    /// The removal's self-checks that tripped: the background's fit to its training views
+    /// ([`check_scene_fit`]) and its holes ([`see_through_check`]).
     pub warnings: Vec<Warning>,
 }
 
@@ -148,7 +150,7 @@ pub fn remove(
 
     let (filled_px, t_hole) = train_and_fill(&mut fit, &field_opts, opts, progress);
     let t_train = fit.seconds();
-    let fitted = fit.finish();
+    let mut fitted = fit.finish();
     let notes = model_notes(FieldKind::Scene, scene, &field_opts.fit, &fitted.report);
     let notes = with_removed(notes, &opts.objects, segment_dir);
     crate::field::io::save(
@@ -172,7 +174,11 @@ pub fn remove(
     let renders = render_all(&fitted.trainer.field, &RenderOptions::default(), &all);
     progress.end();
     let holes = find_unseen(&all, &renders, observers).stats;
-    let warnings: Vec<Warning> = see_through_check(&all, &renders).into_iter().collect();
+    // The background's fit to the views it trained on, outside the holes.
+    let fit_check = measure_scene_fit(&all[..observers], &renders[..observers]);
+    let mut warnings = check_scene_fit(&fit_check);
+    warnings.extend(see_through_check(&all, &renders));
+    fitted.report.scene_fit = Some(fit_check);
     for (v, r) in all.iter().zip(&renders) {
         crate::util::atomic::save_image_atomic(
             &crate::scene::io::mask_file(&root.join("renders"), &v.name),
