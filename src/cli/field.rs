@@ -36,8 +36,9 @@ pub struct TrainCmd {
     /// Stop after this many seconds of training.
     #[arg(long)]
     time_budget: Option<f64>,
-    /// Depth supervision: sparse (the sparse 3D points), dense (depth images) or none. Default:
-    /// none for an object field, sparse for a scene field (without it a scene field has no
+    /// Depth supervision: sparse (the sparse 3D points), spread (their depths spread over each
+    /// view where nearby points agree on a surface), dense (depth images) or none. Default: none
+    /// for an object field, spread for a scene field (without depth a scene field has no
     /// geometry to hold its views together).
     #[arg(long)]
     depth: Option<DepthMode>,

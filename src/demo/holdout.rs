@@ -3,8 +3,9 @@
 //! field tests and benchmarks use it.
 
 use crate::error::{Error, Result};
-use crate::field::depth::{add_dense_depth, add_sparse_depth};
+use crate::field::depth::add_dense_depth;
 use crate::field::eval::evaluate;
+use crate::field::fit::add_depth_targets;
 use crate::field::holdout::{depth_error, split_every, DepthError};
 use crate::field::session::{prepare, RunSummary, SetupConfig, SetupReport, StopRule};
 use crate::field::{load_views, DepthMode, MaskSource, RenderOptions, TrainConfig, View};
@@ -76,11 +77,7 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
     // Truth depth on every view for scoring; training gets the targets it was asked for.
     let mut scoring = views.clone();
     add_dense_depth(&mut scoring, &scene, run.downscale)?;
-    match run.depth {
-        DepthMode::None => 0,
-        DepthMode::Dense => add_dense_depth(&mut views, &scene, run.downscale)?,
-        DepthMode::Sparse => add_sparse_depth(&mut views, &scene, run.downscale)?,
-    };
+    add_depth_targets(&mut views, &scene, run.depth, run.downscale)?;
     let (train, _) = split_every(views, run.every);
     let (_, test) = split_every(scoring, run.every);
     let points = crate::field::bounds::points_in_masks(&scene, &train, run.downscale);
