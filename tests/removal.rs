@@ -407,9 +407,13 @@ fn held_out(n: usize) -> Vec<String> {
         .collect()
 }
 
+/// Held-out PSNR under which a scene field must have flagged itself: its fit check warns under
+/// 24 dB on its training views, and held-out views score a dB or two below those.
+const SELF_CHECK_DB: f64 = 22.0;
+
 /// The whole demo scene as a scene field (nothing removed), and the forward-facing demo in NDC
-/// space: held-out PSNR >= 28 dB and >= 26 dB, and a field under its floor flagged by its own
-/// self-check. Slow: `cargo test --release --test removal --
+/// space: held-out PSNR >= 28 dB and >= 26 dB, and a poor field flagged by its own self-check.
+/// Slow: `cargo test --release --test removal --
 /// --ignored --nocapture`.
 #[test]
 #[ignore]
@@ -450,7 +454,8 @@ fn demo_scene_fields_render_held_out_views() {
             &renders.display().to_string(),
         ]);
         let p = psnr_inside(&scene, &renders, &held_out(views), None);
-        // A field under its floor must say so itself (its fit to its own training views).
+        // A poor field must say so itself (its fit to its own training views): one held out
+        // under SELF_CHECK_DB is blurred or foggy, not just short of the floor.
         let said = String::from_utf8_lossy(&o.stdout);
         let flagged =
             said.contains("scene_field_blurred") || said.contains("scene_field_see_through");
