@@ -74,10 +74,35 @@ pub const CLEARED_LOGIT: f32 = -4.6;
 /// held (a remnant of the object); what lies behind it stays, and the fill's targets raise the
 /// ground there again (the cells stay occupied). Returns the cells emptied.
 pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
+    let inside = removed_hull(field, views);
+    let empty = CLEARED_LOGIT - field.shift();
+    let ch = field.grid.channels;
+    for c in &inside {
+        for i in 0..8 {
+            let v = field
+                .grid
+                .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
+            if v != super::grid::NONE {
+                let v = v as usize * ch;
+                field.grid.data[v] = empty;
+                field.grid.data[v + 1..v + ch].fill(0.0);
+            }
+        }
+    }
+    inside.len()
+}
+
+/// The occupied cells whose centre projects into the hole of at least [`REMOVED_HULL_VOTE`] of
+/// the views that see it (two at least): the removed objects' volume and, seen from one side
+/// only, what lies behind them (empty when no view has a hole).
+pub fn removed_hull(field: &Field, views: &[View]) -> Vec<[usize; 3]> {
+    if views.iter().all(|v| v.loss_mask.is_none()) {
+        return Vec::new();
+    }
     let holes: Vec<Vec<bool>> = views.iter().map(hole_of).collect();
-    let cells = field.occupied_cell_list();
     let space = field.space.clone();
-    let inside: Vec<[usize; 3]> = cells
+    field
+        .occupied_cell_list()
         .into_par_iter()
         .filter(|&c| {
             let Some(p) = space.unmap(field.cell_center(c)) else {
@@ -94,22 +119,7 @@ pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
             }
             seen >= 2 && hole as f32 >= REMOVED_HULL_VOTE * seen as f32
         })
-        .collect();
-    let empty = CLEARED_LOGIT - field.shift();
-    let ch = field.grid.channels;
-    for c in &inside {
-        for i in 0..8 {
-            let v = field
-                .grid
-                .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
-            if v != super::grid::NONE {
-                let v = v as usize * ch;
-                field.grid.data[v] = empty;
-                field.grid.data[v + 1..v + ch].fill(0.0);
-            }
-        }
-    }
-    inside.len()
+        .collect()
 }
 
 /// How much more of a view's hole than of the rest of it may render see-through (opacity below
