@@ -398,7 +398,7 @@ impl Trainer {
         // No ray with a loss reaches behind a removed object's hole: what lies there (a wall
         // behind a mounted head, the ground under an object) is kept for the fill to raise
         // again. Carved, fox's wall behind the head rendered see-through in half its hole.
-        for c in super::hole::removed_hull(&self.field, views) {
+        for c in super::removed::removed_hull(&self.field, views) {
             keep[c[0] + cells[0] * (c[1] + cells[1] * c[2])] = true;
         }
         // A view between the training views crosses a surface where no training ray quite did:
