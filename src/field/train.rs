@@ -395,12 +395,6 @@ impl Trainer {
             let (x, y, z) = (b % dims[0], (b / dims[0]) % dims[1], b / plane);
             keep[x + cells[0] * (y + cells[1] * z)] = true;
         }
-        // No ray with a loss reaches behind a removed object's hole: what lies there (a wall
-        // behind a mounted head, the ground under an object) is kept for the fill to raise
-        // again. Carved, fox's wall behind the head rendered see-through in half its hole.
-        for c in super::removed::removed_hull(&self.field, views) {
-            keep[c[0] + cells[0] * (c[1] + cells[1] * c[2])] = true;
-        }
         // A view between the training views crosses a surface where no training ray quite did:
         // keep one cell around every kept cell, or it sees through pinholes.
         let keep = dilate_cells(&keep, cells);
