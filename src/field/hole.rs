@@ -12,7 +12,6 @@
 
 use super::eval::{render_view, Rendered};
 use super::model::Field;
-use super::removed::{hole_of, removed_hull};
 use super::render::RenderOptions;
 use super::view::View;
 use crate::util::inpaint::inpaint_harmonic;
@@ -46,6 +45,18 @@ pub struct Holes {
     pub stats: Vec<ViewHole>,
 }
 
+/// A view's hole: the pixels that carry no loss.
+fn hole_of(v: &View) -> Vec<bool> {
+    match &v.loss_mask {
+        Some(m) => m.iter().map(|&k| !k).collect(),
+        None => vec![false; (v.width * v.height) as usize],
+    }
+}
+
+/// A cell lies in the removed objects' volume when at least this fraction of the views that see
+/// its centre see it inside their hole (voting, as the object field's visual hull).
+pub const REMOVED_HULL_VOTE: f32 = 0.8;
+
 /// What a cleared cell's density logit (`raw + shift`) is set to: -4.6, a new cell's (alpha_init
 /// = 1% a voxel), and its colour to grey (SH 0). Cleared cells are trained afresh: those other
 /// views saw outside their holes are carved or raised again by their rays, the never-seen
@@ -58,12 +69,32 @@ pub struct Holes {
 pub const CLEARED_LOGIT: f32 = -4.6;
 
 /// Empty the removed objects' volume: the cells whose centre projects into the hole of at least
-/// [`super::removed::REMOVED_HULL_VOTE`] of the views that see it (two at least) start afresh (density at
+/// [`REMOVED_HULL_VOTE`] of the views that see it (two at least) start afresh (density at
 /// [`CLEARED_LOGIT`], grey). Few rays with a loss cross that volume, so it would keep whatever it
 /// held (a remnant of the object); what lies behind it stays, and the fill's targets raise the
 /// ground there again (the cells stay occupied). Returns the cells emptied.
 pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
-    let inside = removed_hull(field, views);
+    let holes: Vec<Vec<bool>> = views.iter().map(hole_of).collect();
+    let cells = field.occupied_cell_list();
+    let space = field.space.clone();
+    let inside: Vec<[usize; 3]> = cells
+        .into_par_iter()
+        .filter(|&c| {
+            let Some(p) = space.unmap(field.cell_center(c)) else {
+                return false;
+            };
+            let (mut seen, mut hole) = (0usize, 0usize);
+            for (v, h) in views.iter().zip(&holes) {
+                let Some((u, w)) = v.project(p) else { continue };
+                if u < 0.0 || w < 0.0 || u >= v.width as f32 || w >= v.height as f32 {
+                    continue;
+                }
+                seen += 1;
+                hole += h[(w as u32 * v.width + u as u32) as usize] as usize;
+            }
+            seen >= 2 && hole as f32 >= REMOVED_HULL_VOTE * seen as f32
+        })
+        .collect();
     let empty = CLEARED_LOGIT - field.shift();
     let ch = field.grid.channels;
     for c in &inside {

@@ -51,7 +51,6 @@ pub mod io;
 pub mod layout;
 pub mod model;
 pub mod rays;
-pub mod removed;
 pub mod render;
 pub mod scene_checks;
 pub mod session;
