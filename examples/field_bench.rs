@@ -4,6 +4,7 @@
 //!
 //! cargo run --release --example field_bench -- DATA_DIR DOWNSCALE SECONDS [SH_DEGREE] [STEPS]
 //! cargo run --release --example field_bench -- demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]
+//!     (FIELD_STEPS=N: N steps instead of the time budget; FIELD_LR as below)
 //!
 //! `examples/field_pareto.rs` runs a sweep of these (one process each, for peak RSS) and draws
 //! the chart.
@@ -11,7 +12,8 @@
 //! Environment overrides for sweeps: FIELD_BATCH, FIELD_STEP (sample spacing in voxels),
 //! FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and grid scale), FIELD_PRUNE (steps
 //! between occupancy updates), FIELD_TV ("density,colour"), FIELD_LR ("density,colour"),
-//! FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB.
+//! FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB, FIELD_CARVE (carve weight before each
+//! growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -42,14 +44,24 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
         .map(|s| s.parse().map_err(objnerf::Error::invalid))
         .transpose()?
         .unwrap_or(field::DepthMode::None);
+    // FIELD_STEPS: a fixed step count instead of the time budget (the same result at any load).
+    let mut train = TrainConfig::default();
+    if let Some((a, b)) = pair("FIELD_LR") {
+        (train.lr_density, train.lr_color) = (a, b);
+    }
+    let steps: Option<usize> = env("FIELD_STEPS");
+    if let Some(n) = steps {
+        train.steps = n;
+    }
     let cpu0 = cpu_seconds();
     let r = demo_object(
         &dir,
         object,
         &DemoRun {
             depth,
+            train,
             stop: StopRule {
-                time_budget: Some(secs),
+                time_budget: steps.is_none().then_some(secs),
                 plateau_db: None,
                 window: 100,
                 ..Default::default()
@@ -94,6 +106,9 @@ fn main() -> objnerf::Result<()> {
     if let Some(v) = env("FIELD_VPP") {
         setup.voxels_per_pixel = v;
     }
+    if let Some(v) = env("FIELD_ALPHA_INIT") {
+        setup.alpha_init = v;
+    }
     if let Some(v) = env::<usize>("FIELD_MEM_MB") {
         setup.memory_budget = v << 20;
     }
@@ -122,6 +137,12 @@ fn main() -> objnerf::Result<()> {
     }
     if let Some(v) = env("FIELD_BATCH") {
         cfg.batch = v;
+    }
+    if let Some(v) = env("FIELD_CARVE") {
+        cfg.carve_weight = v;
+    }
+    if let Some(v) = env("FIELD_LR_FINAL") {
+        cfg.lr_final = v;
     }
     let cpu0 = cpu_seconds();
     let t1 = std::time::Instant::now();

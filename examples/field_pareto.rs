@@ -8,6 +8,12 @@
 //!     [--lego ../shared/data/lego] [--demo DEMO_DIR] [--out examples/results] [--quick]
 //!
 //! Without `--demo` the default demo scene is made in a temporary folder.
+//!
+//! `--sizes [--dense-bench PATH]` runs the other sweep instead: lego at 200^2, 400^2 and 800^2 for
+//! the budgets in [`SIZES`] with today's sparse field, and, given the path of a `field_bench`
+//! built before the grid became sparse (commit c3b87eb: `git worktree add /tmp/dense c3b87eb &&
+//! cargo build --release --example field_bench` there), the same runs with that dense grid.
+//! Writes `OUT/field_sizes.{json,svg}`.
 
 use objnerf::util::chart::{layers, series, svg, ChartResult, Panel};
 use serde_json::{json, Value};
@@ -21,6 +27,13 @@ const LEGO: &[(&str, u32, f64, f32)] = &[
     ("200^2", 4, 90.0, 1.0),
     ("200^2 half-res grid", 4, 90.0, 0.5),
     ("400^2", 2, 150.0, 1.0),
+];
+/// The size sweep: (label, downscale, seconds, also run with the dense grid).
+const SIZES: &[(&str, u32, f64, bool)] = &[
+    ("200^2", 4, 60.0, true),
+    ("200^2", 4, 300.0, false),
+    ("400^2", 2, 300.0, true),
+    ("800^2", 1, 1200.0, false),
 ];
 const DEMO_OBJECTS: &[&str] = &["mug", "sphere", "box", "torus"];
 const DEMO_BUDGETS: &[f64] = &[40.0];
@@ -39,8 +52,12 @@ fn arg(args: &[String], name: &str) -> Option<String> {
 /// Run `field_bench` (beside this executable) and parse the JSON it prints last.
 fn bench(args: &[String], env: &[(&str, String)]) -> Value {
     let exe = std::env::current_exe().expect("own path");
-    let bin = exe.with_file_name("field_bench");
-    let mut cmd = std::process::Command::new(&bin);
+    bench_with(&exe.with_file_name("field_bench"), args, env)
+}
+
+/// Run the `field_bench` at `bin` and parse the JSON it prints last.
+fn bench_with(bin: &Path, args: &[String], env: &[(&str, String)]) -> Value {
+    let mut cmd = std::process::Command::new(bin);
     cmd.args(args);
     for (k, v) in env {
         cmd.env(k, v);
@@ -64,6 +81,10 @@ fn main() {
     let lego = PathBuf::from(arg(&args, "--lego").unwrap_or("../shared/data/lego".into()));
     let out_dir = PathBuf::from(arg(&args, "--out").unwrap_or("examples/results".into()));
     let quick = args.iter().any(|a| a == "--quick");
+    if args.iter().any(|a| a == "--sizes") {
+        sizes(&args, &lego, &out_dir, quick);
+        return;
+    }
     let scale = if quick { 0.1 } else { 1.0 };
     let tmp = tempfile::tempdir().expect("temp dir");
     let demo_dir = match arg(&args, "--demo") {
@@ -192,5 +213,93 @@ fn chart(result: &Value, path: &Path) -> ChartResult<()> {
         ),
     ];
     std::fs::write(path, svg((1400, 520), 1, &panels)?)?;
+    Ok(())
+}
+
+/// The size sweep (`--sizes`): sparse and, where a dense `field_bench` is given, dense runs.
+fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
+    if !lego.exists() {
+        eprintln!("SKIP: {} is absent", lego.display());
+        return;
+    }
+    let scale = if quick { 0.05 } else { 1.0 };
+    let dense = arg(args, "--dense-bench").map(PathBuf::from);
+    let exe = std::env::current_exe().expect("own path");
+    let sparse = exe.with_file_name("field_bench");
+    let start = std::time::Instant::now();
+    let load_before = loadavg();
+    let mut runs = Vec::new();
+    for &(label, ds, secs, with_dense) in SIZES {
+        let mut grids = vec![("sparse", sparse.clone())];
+        if let (true, Some(d)) = (with_dense, &dense) {
+            grids.push(("dense", d.clone()));
+        }
+        for (grid, bin) in grids {
+            let run_args = [
+                lego.display().to_string(),
+                ds.to_string(),
+                (secs * scale).to_string(),
+            ];
+            let mut r = bench_with(&bin, &run_args, &[]);
+            r["label"] = json!(label);
+            r["grid"] = json!(grid);
+            r["load_average_after"] = json!(loadavg());
+            eprintln!(
+                "  {grid} {label} {secs} s: PSNR {} dB, peak RSS {} MiB",
+                r["test_psnr"], r["peak_rss_mib"]
+            );
+            runs.push(r);
+        }
+    }
+    let result = json!({
+        "what": "objnerf field on lego (25 test views on white): test PSNR and peak RSS against the training budget at 200^2, 400^2 and 800^2, the sparse grid (this commit) against the dense grid (field_bench of commit c3b87eb, where given); one process per run",
+        "machine": objnerf::util::machine::machine(),
+        "git_commit": objnerf::util::machine::git_commit(),
+        "command": args.join(" "),
+        "total_s": start.elapsed().as_secs_f64(),
+        "load_average_before": load_before,
+        "runs": runs,
+    });
+    std::fs::create_dir_all(out_dir).expect("output folder");
+    let json_path = out_dir.join("field_sizes.json");
+    objnerf::util::atomic::write_bytes_atomic(
+        &json_path,
+        serde_json::to_string_pretty(&result).unwrap().as_bytes(),
+    )
+    .expect("write JSON");
+    sizes_chart(&result, &out_dir.join("field_sizes.svg")).expect("chart");
+    eprintln!("wrote {} and field_sizes.svg", json_path.display());
+}
+
+fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
+    let empty = Vec::new();
+    let runs = result["runs"].as_array().unwrap_or(&empty);
+    let name = |r: &Value| {
+        format!(
+            "{} {}",
+            r["grid"].as_str().unwrap_or("?"),
+            r["label"].as_str().unwrap_or("?")
+        )
+    };
+    let budget = |r: &Value| r["train"]["seconds"].as_f64();
+    let psnr = series(runs, name, |r| Some((budget(r)?, r["test_psnr"].as_f64()?)));
+    let rss = series(runs, name, |r| {
+        Some((budget(r)?, r["peak_rss_mib"].as_f64()?))
+    });
+    let panels = [
+        Panel::fitted(
+            "lego: test PSNR vs training time",
+            "training wall seconds (2 cores)",
+            "test PSNR on white (dB)",
+            layers(psnr),
+        ),
+        Panel::fitted(
+            "peak RSS of each run",
+            "training wall seconds (2 cores)",
+            "peak RSS (MiB)",
+            layers(rss),
+        ),
+    ];
+    std::fs::write(path, svg((1100, 480), 1, &panels)?)?;
     Ok(())
 }

@@ -69,6 +69,10 @@ impl Default for TrainConfig {
             seed: 0,
             batch: 2048,
             steps: 20_000,
+            // Higher rates train lego faster (200^2, 4000 steps: 30.46 dB here, 31.95 at
+            // (0.2, 0.2)) but cut the demo meshes: Chamfer of the sphere 1.92% -> 2.18% of its
+            // box diagonal, of the mug 1.67% -> 1.76% (examples/results/field.md, "learning
+            // rates"); kept until geometry has its own safeguard.
             lr_density: 0.1,
             lr_color: 0.05,
             lr_final: 0.1,
@@ -155,17 +159,63 @@ impl AdamStep {
         v0: usize,
         ch: usize,
     ) {
-        let (b1, b2, c1, c2) = (self.b1, self.b2, self.c1, self.c2);
+        // lr (m / c1) / (sqrt(v) / c2 + eps) = (lr c2 / c1) m / (sqrt(v) + eps c2): one division
+        // per value, and the density channel (its own rate) split off so the colour channels
+        // run as one branch-free loop the compiler vectorises.
+        let rate = self.lr.map(|l| l * self.c2 / self.c1);
+        let eps = 1e-8 * self.c2;
         for &vtx in list {
             let o = (vtx as usize - v0) * ch;
-            for j in o..o + ch {
-                let gj = g[j];
-                g[j] = 0.0;
-                m[j] = b1 * m[j] + (1.0 - b1) * gj;
-                v[j] = b2 * v[j] + (1.0 - b2) * gj * gj;
-                let l = if j == o { self.lr[0] } else { self.lr[1] };
-                p[j] -= l * (m[j] / c1) / (v[j].sqrt() / c2 + 1e-8);
-            }
+            let r = o..o + ch;
+            let (p, g, m, v) = (
+                &mut p[r.clone()],
+                &mut g[r.clone()],
+                &mut m[r.clone()],
+                &mut v[r],
+            );
+            self.update(
+                &mut p[..1],
+                &mut g[..1],
+                &mut m[..1],
+                &mut v[..1],
+                rate[0],
+                eps,
+            );
+            self.update(
+                &mut p[1..],
+                &mut g[1..],
+                &mut m[1..],
+                &mut v[1..],
+                rate[1],
+                eps,
+            );
+        }
+    }
+
+    /// Adam on equal-length runs of values (parameters, gradients, moments); clears the
+    /// gradients.
+    #[inline(always)]
+    fn update(
+        &self,
+        p: &mut [f32],
+        g: &mut [f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        rate: f32,
+        eps: f32,
+    ) {
+        let (b1, b2) = (self.b1, self.b2);
+        for (((p, g), m), v) in p
+            .iter_mut()
+            .zip(g.iter_mut())
+            .zip(m.iter_mut())
+            .zip(v.iter_mut())
+        {
+            let gj = *g;
+            *g = 0.0;
+            *m = b1 * *m + (1.0 - b1) * gj;
+            *v = b2 * *v + (1.0 - b2) * gj * gj;
+            *p -= rate * *m / (v.sqrt() + eps);
         }
     }
 }
