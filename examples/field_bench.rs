@@ -184,7 +184,7 @@ fn main() -> objnerf::Result<()> {
         "train_cpu_s": train_cpu,
         "setup": report, "vertices": trainer.field.grid.num_vertices(),
         "dims": trainer.field.grid.dims,
-        "occupied_cells": trainer.field.occupied_cells(),
+        "occupied_cells": trainer.field.occupied_cells(), "finest": trainer.finest,
         "phase_secs": trainer.phase_secs,
         "memory_mb": trainer.memory_bytes() as f64 / 1048576.0, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,

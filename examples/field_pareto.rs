@@ -13,7 +13,7 @@
 //! the budgets in [`SIZES`] with today's sparse field, and, given the path of a `field_bench`
 //! built before the grid became sparse (commit c3b87eb: `git worktree add /tmp/dense c3b87eb &&
 //! cargo build --release --example field_bench` there), the same runs with that dense grid.
-//! Writes `OUT/field_sizes.{json,svg}`.
+//! Writes `OUT/field_sizes.{json,svg}`; `--sizes --replot` redraws the SVG from that JSON.
 
 use objnerf::util::chart::{layers, series, svg, ChartResult, Panel};
 use serde_json::{json, Value};
@@ -35,6 +35,9 @@ const SIZES: &[(&str, u32, f64, bool)] = &[
     ("400^2", 2, 300.0, true),
     ("800^2", 1, 1200.0, false),
 ];
+/// Sparse runs with a coarser finest grid than the default one voxel per pixel footprint:
+/// (label, downscale, seconds, FIELD_VPP).
+const COARSER: &[(&str, u32, f64, f32)] = &[("400^2", 2, 300.0, 0.6), ("800^2", 1, 1200.0, 0.4)];
 const DEMO_OBJECTS: &[&str] = &["mug", "sphere", "box", "torus"];
 const DEMO_BUDGETS: &[f64] = &[40.0];
 
@@ -222,6 +225,14 @@ fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
         eprintln!("SKIP: {} is absent", lego.display());
         return;
     }
+    if args.iter().any(|a| a == "--replot") {
+        // Redraw from the JSON (runs added to it by hand included).
+        let path = out_dir.join("field_sizes.json");
+        let text = std::fs::read_to_string(&path).expect("field_sizes.json to redraw");
+        let result: Value = serde_json::from_str(&text).expect("field_sizes.json is JSON");
+        sizes_chart(&result, &out_dir.join("field_sizes.svg")).expect("chart");
+        return;
+    }
     let scale = if quick { 0.05 } else { 1.0 };
     let dense = arg(args, "--dense-bench").map(PathBuf::from);
     let exe = std::env::current_exe().expect("own path");
@@ -250,6 +261,22 @@ fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
             );
             runs.push(r);
         }
+    }
+    for &(label, ds, secs, vpp) in COARSER {
+        let run_args = [
+            lego.display().to_string(),
+            ds.to_string(),
+            (secs * scale).to_string(),
+        ];
+        let mut r = bench_with(&sparse, &run_args, &[("FIELD_VPP", vpp.to_string())]);
+        r["label"] = json!(label);
+        r["grid"] = json!(format!("sparse {vpp} voxel/px"));
+        r["load_average_after"] = json!(loadavg());
+        eprintln!(
+            "  sparse {vpp} voxel/px {label} {secs} s: PSNR {} dB",
+            r["test_psnr"]
+        );
+        runs.push(r);
     }
     let result = json!({
         "what": "objnerf field on lego (25 test views on white): test PSNR and peak RSS against the training budget at 200^2, 400^2 and 800^2, the sparse grid (this commit) against the dense grid (field_bench of commit c3b87eb, where given); one process per run",
@@ -282,6 +309,13 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
         )
     };
     let budget = |r: &Value| r["train"]["seconds"].as_f64();
+    // Where the time goes: the share of training in the gradient scatter and Adam (phase 1),
+    // the rest being mostly forward + backward marching (phase 0).
+    let scatter_share = series(runs, name, |r| {
+        let p = r["phase_secs"].as_array()?;
+        let total: f64 = p.iter().filter_map(Value::as_f64).sum();
+        Some((budget(r)?, 100.0 * p.get(1)?.as_f64()? / total.max(1e-9)))
+    });
     let psnr = series(runs, name, |r| Some((budget(r)?, r["test_psnr"].as_f64()?)));
     let rss = series(runs, name, |r| {
         Some((budget(r)?, r["peak_rss_mib"].as_f64()?))
@@ -299,7 +333,13 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
             "peak RSS (MiB)",
             layers(rss),
         ),
+        Panel::fitted(
+            "where the time goes",
+            "training wall seconds (2 cores)",
+            "% of training in gradient scatter + Adam",
+            layers(scatter_share),
+        ),
     ];
-    std::fs::write(path, svg((1100, 480), 1, &panels)?)?;
+    std::fs::write(path, svg((1500, 480), 1, &panels)?)?;
     Ok(())
 }

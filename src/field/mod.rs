@@ -11,7 +11,9 @@
 //! saves and loads the model file, and [`fit`] is training on a scene as one call.
 //!
 //! Measurements (SH degree, batch and step sweeps, headline runs on lego, the Pareto sweep, the
-//! demo objects' depth error) are in `examples/results/field.md` beside the benchmark JSON.
+//! demo objects' depth error, learning rates) are in `examples/results/field.md` beside the
+//! benchmark JSON; test PSNR against training time on lego at 200^2, 400^2 and 800^2, sparse
+//! against dense, with peak RSS, in `examples/results/field_sizes.{json,svg}`.
 //!
 //! # Design, and why
 //! - **One vertex grid, all channels of a vertex together** (`[raw density, SH r, SH g, SH b]`,
@@ -28,7 +30,13 @@
 //!   of the views that see it show background there, so occlusions in visible-part masks do not
 //!   cut the object), carved at the first stage's cells; cells whose densest corner has
 //!   alpha < 1e-4 are pruned every 100 steps (exact: post-activation is monotone, and such
-//!   samples are dropped anyway). Empty 8^3-cell blocks are jumped over.
+//!   samples are dropped anyway). Empty bricks are jumped over.
+//! - **Sparse bricks** ([`grid`]): only the 4^3-vertex bricks around occupied cells are stored,
+//!   so memory follows the occupied shell (lego 400^2 at the dense grid's resolution: 647 vs
+//!   910 MiB peak). The finest stage's resolution is one voxel per pixel footprint, coarsened
+//!   until its bricks fit the memory budget. Measured at a fixed time, that is too fine for
+//!   large images (lego 400^2, 300 s: 29.7 dB at 1 voxel/px against 31.4 at 0.6, which takes
+//!   2.4x the steps): the resolution should also follow the time budget (open, issue 19).
 //! - **Deterministic multi-threading**: fixed 256-ray chunks with per-ray seeded randomness write
 //!   gradient records bucketed by z-slab; each slab sums its records in chunk order. No atomics,
 //!   no per-thread dense gradient copies, and the same grid for a seed at any thread count.
