@@ -429,3 +429,25 @@ fn version_2_model_files_still_load() {
         }
     }
 }
+
+/// A model file from a newer objnerf is a clear error naming the version, not a misread.
+#[test]
+fn a_newer_model_version_is_a_clear_error() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/model_v2.objf");
+    let bytes = std::fs::read(path).unwrap();
+    let at = bytes
+        .windows(12)
+        .position(|w| w == b"\"version\": 2")
+        .expect("the header's version");
+    let mut newer = bytes.clone();
+    newer[at + 11] = b'9';
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("newer.objf");
+    std::fs::write(&file, newer).unwrap();
+    let err = io::load(&file).unwrap_err().to_string();
+    assert!(err.contains("version 9 is newer"), "{err}");
+    assert!(
+        err.contains("newer.objf"),
+        "the error names the file: {err}"
+    );
+}
