@@ -28,16 +28,17 @@ const LEGO: &[(&str, u32, f64, f32)] = &[
     ("200^2 half-res grid", 4, 90.0, 0.5),
     ("400^2", 2, 150.0, 1.0),
 ];
-/// The size sweep: (label, downscale, seconds, also run with the dense grid).
-const SIZES: &[(&str, u32, f64, bool)] = &[
-    ("200^2", 4, 60.0, true),
-    ("200^2", 4, 300.0, false),
-    ("400^2", 2, 300.0, true),
-    ("800^2", 1, 1200.0, false),
+/// The size sweep: (label, downscale, seconds, voxels per pixel footprint of the finest grid,
+/// also run with the dense grid). 1.0 is the default; the coarser runs show what a fixed time
+/// buys at a lower resolution.
+const SIZES: &[(&str, u32, f64, f32, bool)] = &[
+    ("200^2", 4, 60.0, 1.0, true),
+    ("200^2", 4, 300.0, 1.0, false),
+    ("400^2", 2, 300.0, 1.0, true),
+    ("800^2", 1, 1200.0, 1.0, false),
+    ("400^2", 2, 300.0, 0.6, false),
+    ("800^2", 1, 1200.0, 0.4, false),
 ];
-/// Sparse runs with a coarser finest grid than the default one voxel per pixel footprint:
-/// (label, downscale, seconds, FIELD_VPP).
-const COARSER: &[(&str, u32, f64, f32)] = &[("400^2", 2, 300.0, 0.6), ("800^2", 1, 1200.0, 0.4)];
 const DEMO_OBJECTS: &[&str] = &["mug", "sphere", "box", "torus"];
 const DEMO_BUDGETS: &[f64] = &[40.0];
 
@@ -221,16 +222,16 @@ fn chart(result: &Value, path: &Path) -> ChartResult<()> {
 
 /// The size sweep (`--sizes`): sparse and, where a dense `field_bench` is given, dense runs.
 fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
-    if !lego.exists() {
-        eprintln!("SKIP: {} is absent", lego.display());
-        return;
-    }
     if args.iter().any(|a| a == "--replot") {
         // Redraw from the JSON (runs added to it by hand included).
         let path = out_dir.join("field_sizes.json");
         let text = std::fs::read_to_string(&path).expect("field_sizes.json to redraw");
         let result: Value = serde_json::from_str(&text).expect("field_sizes.json is JSON");
         sizes_chart(&result, &out_dir.join("field_sizes.svg")).expect("chart");
+        return;
+    }
+    if !lego.exists() {
+        eprintln!("SKIP: {} is absent", lego.display());
         return;
     }
     let scale = if quick { 0.05 } else { 1.0 };
@@ -240,18 +241,27 @@ fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
     let start = std::time::Instant::now();
     let load_before = loadavg();
     let mut runs = Vec::new();
-    for &(label, ds, secs, with_dense) in SIZES {
-        let mut grids = vec![("sparse", sparse.clone())];
-        if let (true, Some(d)) = (with_dense, &dense) {
-            grids.push(("dense", d.clone()));
+    for &(label, ds, secs, vpp, with_dense) in SIZES {
+        let mut grids = vec![(format!("sparse {vpp} voxel/px"), sparse.clone())];
+        if vpp == 1.0 {
+            grids[0].0 = "sparse".into();
         }
+        if let (true, Some(d)) = (with_dense, &dense) {
+            grids.push(("dense".into(), d.clone()));
+        }
+        // Default settings stay default: FIELD_VPP only where the run asks for another value.
+        let env: Vec<(&str, String)> = if vpp == 1.0 {
+            vec![]
+        } else {
+            vec![("FIELD_VPP", vpp.to_string())]
+        };
         for (grid, bin) in grids {
             let run_args = [
                 lego.display().to_string(),
                 ds.to_string(),
                 (secs * scale).to_string(),
             ];
-            let mut r = bench_with(&bin, &run_args, &[]);
+            let mut r = bench_with(&bin, &run_args, &env);
             r["label"] = json!(label);
             r["grid"] = json!(grid);
             r["load_average_after"] = json!(loadavg());
@@ -261,22 +271,6 @@ fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
             );
             runs.push(r);
         }
-    }
-    for &(label, ds, secs, vpp) in COARSER {
-        let run_args = [
-            lego.display().to_string(),
-            ds.to_string(),
-            (secs * scale).to_string(),
-        ];
-        let mut r = bench_with(&sparse, &run_args, &[("FIELD_VPP", vpp.to_string())]);
-        r["label"] = json!(label);
-        r["grid"] = json!(format!("sparse {vpp} voxel/px"));
-        r["load_average_after"] = json!(loadavg());
-        eprintln!(
-            "  sparse {vpp} voxel/px {label} {secs} s: PSNR {} dB",
-            r["test_psnr"]
-        );
-        runs.push(r);
     }
     let result = json!({
         "what": "objnerf field on lego (25 test views on white): test PSNR and peak RSS against the training budget at 200^2, 400^2 and 800^2, the sparse grid (this commit) against the dense grid (field_bench of commit c3b87eb, where given); one process per run",
