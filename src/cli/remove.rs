@@ -77,16 +77,17 @@ impl RemoveCmd {
         let r = remove(&scene, &self.segment, &opts, &self.out, &bars)?;
         if let Some(s) = &r.train.setup {
             println!(
-                "grid: {:?} ({} vertices), {} MiB with optimiser state",
+                "grid: {:?} reached ({} vertices allocated; planned {:?}), {} MiB with optimiser state",
+                r.train.dims,
+                r.train.vertices,
                 s.final_dims,
-                s.final_vertices,
                 r.train.memory_bytes >> 20
             );
         }
         let run = &r.train.run;
         println!(
-            "trained {} steps in {:.0} s (stopped by {}), batch PSNR {:.2} dB; {} hole pixels filled",
-            run.steps, r.seconds.train, run.stopped_by, run.final_psnr, r.filled_px
+            "trained {} steps in {:.0} s (stopped by {}), batch PSNR {:.2} dB; {} hole pixels filled, {} cells occupied again under them",
+            run.steps, r.seconds.train, run.stopped_by, run.final_psnr, r.filled_px, r.reopened_cells
         );
         let (hole, unseen) = r
             .holes

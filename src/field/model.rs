@@ -89,6 +89,9 @@ pub fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
+/// Raw density that makes one finest voxel this opaque where a sparse point was seen.
+const SEED_ALPHA: f32 = 0.3;
+
 impl Field {
     /// A fresh field over a box: density 0 (alpha = alpha_init per finest voxel), grey colour,
     /// every cell occupied (every brick allocated).
@@ -357,6 +360,77 @@ impl Field {
         }
     }
 
+    /// Start surfaces at points (a scene field's sparse points; a removal's fill targets): the
+    /// corners of every cell holding a point get a density (one voxel [`SEED_ALPHA`] opaque) and
+    /// the point's colour as their view-independent colour, so the first rays already stop near
+    /// the right depth with about the right colour (from a transparent start, training takes
+    /// most of its time finding the surfaces).
+    pub fn seed_surfaces(&mut self, seeds: &[(Vec3, [u8; 3])]) {
+        let sp = -(1.0 - SEED_ALPHA).ln();
+        let raw = sp.exp_m1().ln() - self.shift();
+        let k = self.sh_k();
+        let ch = self.grid.channels;
+        // sigmoid(C0 * dc) = colour
+        const C0: f32 = 0.282_094_8;
+        for (p, rgb) in seeds {
+            let g = self.to_grid(*p);
+            let d = self.grid.dims;
+            if (0..3).any(|a| g[a] < 0.0 || g[a] >= (d[a] - 1) as f32) {
+                continue;
+            }
+            let (b, _) = self.grid.locate([g.x, g.y, g.z]);
+            for i in 0..8 {
+                let v =
+                    self.grid
+                        .vertex_slot(b[0] + (i & 1), b[1] + ((i >> 1) & 1), b[2] + (i >> 2));
+                if v == NONE {
+                    continue;
+                }
+                let vals = &mut self.grid.data[v as usize * ch..(v as usize + 1) * ch];
+                vals[0] = vals[0].max(raw);
+                for c in 0..3 {
+                    let x = (rgb[c] as f32 / 255.0).clamp(0.02, 0.98);
+                    vals[1 + c * k] = (x / (1.0 - x)).ln() / C0;
+                }
+            }
+        }
+    }
+
+    /// Occupy `cells` (base vertices; those outside the grid are skipped), allocating the bricks
+    /// they need: a released brick comes back as a new one (density at alpha_init, grey), the
+    /// values already held stay. Returns the cells that were free before, in `cells`' order.
+    /// The grid's slots are laid out anew when bricks were added: state laid out like the data
+    /// must be reset.
+    pub fn occupy(&mut self, cells: &[[usize; 3]]) -> Vec<[usize; 3]> {
+        let d = self.grid.dims;
+        let new: Vec<[usize; 3]> = cells
+            .iter()
+            .copied()
+            .filter(|c| (0..3).all(|a| c[a] + 1 < d[a]) && !self.occupied(*c))
+            .collect();
+        if new.is_empty() {
+            return new;
+        }
+        let mut all = self.occupied_cell_list();
+        all.extend_from_slice(&new);
+        let need = Field::needed_bricks(d, &all);
+        let bd = self.grid.brick_dims;
+        let brick = |i: usize| [i % bd[0], (i / bd[0]) % bd[1], i / (bd[0] * bd[1])];
+        let held = |i: usize| self.grid.slot(brick(i)).is_some();
+        if (0..need.len()).any(|i| need[i] && !held(i)) {
+            // Same dims: every kept vertex is resampled at its own position, value for value.
+            let kept: Vec<bool> = (0..need.len()).map(|i| need[i] || held(i)).collect();
+            self.grid = self
+                .grid
+                .resampled(d, |b| kept[b[0] + bd[0] * (b[1] + bd[1] * b[2])]);
+            self.fill_occupancy(false);
+        }
+        for c in all {
+            self.set_occupied(c, true);
+        }
+        new
+    }
+
     /// Bytes held by the parameters (not counting optimiser state).
     pub fn param_bytes(&self) -> usize {
         self.grid.data.len() * 4 + self.occupancy.len() * 8
@@ -422,5 +496,42 @@ mod tests {
         // axis, inside brick 0.
         assert_eq!(f.grid.num_slots(), 1);
         assert!((f.box_max - Vec3::ONE).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn occupying_released_cells_brings_their_bricks_back_and_keeps_every_value() {
+        let mut f = Field::new(
+            FieldConfig {
+                sh_degree: 0,
+                alpha_init: 0.01,
+                base_voxel: 0.1,
+            },
+            Vec3::ZERO,
+            Vec3::ONE,
+            [13, 13, 13],
+        );
+        for (i, x) in f.grid.data.iter_mut().enumerate() {
+            *x = (i as f32 * 0.37).sin();
+        }
+        f.fill_occupancy(false);
+        f.set_occupied([1, 1, 1], true);
+        f.release_free_bricks();
+        assert_eq!(f.grid.num_slots(), 1);
+        let kept = f.grid.vertex(f.grid.vertex_slot(2, 2, 2) as usize).to_vec();
+        // [9, 9, 9] lies in brick (2, 2, 2), released; [1, 1, 1] is occupied already; [12, ...]
+        // is past the last cell.
+        let opened = f.occupy(&[[1, 1, 1], [9, 9, 9], [12, 0, 0]]);
+        assert_eq!(opened, vec![[9, 9, 9]]);
+        assert!(f.occupied([1, 1, 1]) && f.occupied([9, 9, 9]));
+        assert_eq!(f.occupied_cells(), 2);
+        assert_eq!(
+            f.grid.vertex(f.grid.vertex_slot(2, 2, 2) as usize),
+            &kept[..]
+        );
+        // The brought-back brick holds a new cell's values (density 0: alpha_init, grey).
+        let v = f.grid.vertex_slot(10, 10, 10);
+        assert_ne!(v, NONE);
+        assert!(f.grid.vertex(v as usize).iter().all(|&x| x == 0.0));
+        assert!(f.occupy(&[[9, 9, 9]]).is_empty());
     }
 }

@@ -118,7 +118,7 @@ pub fn prepare_scene(
     let mut field = plan.field(setup, space.space.clone(), &cfg);
     clear_near_cameras(&mut field, views, space.near_clip);
     field.release_free_bricks();
-    seed_surfaces(&mut field, seeds);
+    field.seed_surfaces(seeds);
     let rays = RaySet::build(views, &field);
     if rays.rays.is_empty() {
         return Err(crate::error::Error::invalid(
@@ -155,44 +155,6 @@ fn clear_near_cameras(field: &mut Field, views: &[View], radius: f32) {
                         field.set_occupied([x, y, z], false);
                     }
                 }
-            }
-        }
-    }
-}
-
-/// Raw density that makes one finest voxel this opaque where a sparse point was seen.
-const SEED_ALPHA: f32 = 0.3;
-
-/// Start a scene field from its sparse points: the corners of every cell holding a point get a
-/// density (one voxel [`SEED_ALPHA`] opaque) and the point's colour as their view-independent
-/// colour, so the first rays already stop near the right depth with about the right colour
-/// (from a transparent start, training takes most of its time finding the surfaces).
-fn seed_surfaces(field: &mut Field, seeds: &[(Vec3, [u8; 3])]) {
-    let sp = -(1.0 - SEED_ALPHA).ln();
-    let raw = sp.exp_m1().ln() - field.shift();
-    let k = field.sh_k();
-    let ch = field.grid.channels;
-    // sigmoid(C0 * dc) = colour
-    const C0: f32 = 0.282_094_8;
-    for (p, rgb) in seeds {
-        let g = field.to_grid(*p);
-        let d = field.grid.dims;
-        if (0..3).any(|a| g[a] < 0.0 || g[a] >= (d[a] - 1) as f32) {
-            continue;
-        }
-        let (b, _) = field.grid.locate([g.x, g.y, g.z]);
-        for i in 0..8 {
-            let v = field
-                .grid
-                .vertex_slot(b[0] + (i & 1), b[1] + ((i >> 1) & 1), b[2] + (i >> 2));
-            if v == super::grid::NONE {
-                continue;
-            }
-            let vals = &mut field.grid.data[v as usize * ch..(v as usize + 1) * ch];
-            vals[0] = vals[0].max(raw);
-            for c in 0..3 {
-                let x = (rgb[c] as f32 / 255.0).clamp(0.02, 0.98);
-                vals[1 + c * k] = (x / (1.0 - x)).ln() / C0;
             }
         }
     }

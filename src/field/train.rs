@@ -332,6 +332,17 @@ impl Trainer {
         compact_buffer(&mut self.stamp, map, BRICK_VERTICES);
     }
 
+    /// Occupy `cells` ([`Field::occupy`]); the optimiser starts afresh when bricks were added
+    /// (the slots moved). Returns the cells that were free before.
+    pub fn occupy(&mut self, cells: &[[usize; 3]]) -> Vec<[usize; 3]> {
+        let len = self.field.grid.data.len();
+        let opened = self.field.occupy(cells);
+        if self.field.grid.data.len() != len {
+            self.reset_state();
+        }
+        opened
+    }
+
     /// Optimiser state (m, v, step count) for saving a resumable model.
     pub fn adam_state(&self) -> (&[f32], &[f32], u32) {
         (&self.m, &self.v, self.adam_t)

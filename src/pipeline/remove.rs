@@ -18,7 +18,8 @@ use crate::error::{Error, Result};
 use crate::field::eval::{psnr, Rendered};
 use crate::field::holdout::is_held_out;
 use crate::field::hole::{
-    clear_removed_volume, fill_unseen, find_unseen, render_all, see_through_check, ViewHole,
+    clear_removed_volume, fill_unseen, find_unseen, render_all, reopen_filled_surface,
+    see_through_check, ViewHole,
 };
 use crate::field::scene_checks::{check_scene_fit, measure_scene_fit};
 use crate::field::session::StopRule;
@@ -94,6 +95,9 @@ pub struct RemoveReport {
     pub train: TrainReport,
     /// Pixels given fill targets (0 without the fill).
     pub filled_px: usize,
+    /// Cells occupied again where the filled pixels' surface lies
+    /// ([`crate::field::hole::reopen_filled_surface`]; carving may have released them).
+    pub reopened_cells: usize,
     /// Per view (every view of the scene): the hole and the part of it no training view saw.
     pub holes: Vec<ViewHole>,
     pub scores: Option<RemovalScores>,
@@ -148,7 +152,7 @@ pub fn remove(
     let mut fit = SceneFit::new(scene, &field_opts)?;
     let t_load = t0.elapsed().as_secs_f64();
 
-    let (filled_px, t_hole) = train_and_fill(&mut fit, &field_opts, opts, progress);
+    let (filled_px, reopened_cells, t_hole) = train_and_fill(&mut fit, &field_opts, opts, progress);
     let t_train = fit.seconds();
     let mut fitted = fit.finish();
     let notes = model_notes(FieldKind::Scene, scene, &field_opts.fit, &fitted.report);
@@ -197,6 +201,7 @@ pub fn remove(
         held_out,
         train: fitted.report,
         filled_px,
+        reopened_cells,
         holes,
         scores,
         seconds: RemoveSeconds {
@@ -225,14 +230,14 @@ pub const REGROW_SHARE: f32 = 0.15;
 
 /// Train to `fill_after - REGROW_SHARE` of the schedule, empty the removed objects' volume,
 /// train to `fill_after` (the ground others saw grows back), find the unseen hole and give it
-/// targets (with the fill), and train on without pruning. Returns the pixels filled and the
-/// seconds the hole took.
+/// targets (with the fill; the cells where the filled surface lies occupied again), and train on
+/// without pruning. Returns the pixels filled, the cells reopened and the seconds the hole took.
 fn train_and_fill(
     fit: &mut SceneFit,
     field_opts: &SceneFitOptions,
     opts: &RemoveOptions,
     progress: &dyn Progress,
-) -> (usize, f64) {
+) -> (usize, usize, f64) {
     let budget = field_opts.fit.time_budget;
     let steps = field_opts.fit.steps;
     progress.begin("train background", steps as u64);
@@ -257,11 +262,12 @@ fn train_and_fill(
     let regrow = phase(fill_at, fit.seconds());
     fit.train(&regrow, &mut report);
     let t = Instant::now();
-    let mut filled = 0;
+    let (mut filled, mut reopened) = (0, 0);
     if opts.fill {
         let renders = render_all(&fit.trainer.field, &RenderOptions::default(), &fit.views);
         let holes = find_unseen(&fit.views, &renders, fit.views.len());
         filled = fill_unseen(&mut fit.views, &holes, &renders);
+        reopened = reopen_filled_surface(&mut fit.trainer, &fit.views, &holes, &renders);
         drop(renders);
         fit.rebuild_rays();
     }
@@ -272,7 +278,7 @@ fn train_and_fill(
     };
     fit.train(&rest, &mut report);
     progress.end();
-    (filled, t_hole)
+    (filled, reopened, t_hole)
 }
 
 /// The segment run must be of this scene: the same image names.
