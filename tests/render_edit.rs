@@ -600,7 +600,7 @@ fn mesh_recolour_moves_vertex_colours_to_the_target_hue() {
     use objnerf::mesh::from_field::{mesh_field, FieldMeshOptions};
     let (_, _, mug) = fixture();
     let field = objnerf::field::io::load_field(mug).unwrap().field;
-    let plain = mesh_field(&field, "mug", &FieldMeshOptions::default())
+    let plain = mesh_field(&field, "mug", &FieldMeshOptions::default(), None)
         .unwrap()
         .0;
     let blue = [0x20 as f32 / 255.0, 0x50 as f32 / 255.0, 1.0];
@@ -611,7 +611,7 @@ fn mesh_recolour_moves_vertex_colours_to_the_target_hue() {
         }),
         ..Default::default()
     };
-    let recoloured = mesh_field(&field, "mug", &opts).unwrap().0;
+    let recoloured = mesh_field(&field, "mug", &opts, None).unwrap().0;
     let (ca, cb) = (plain.colors.unwrap(), recoloured.colors.unwrap());
     assert_eq!(ca.len(), cb.len());
     let lab = objnerf::edit::recolour::srgb_to_oklab;

@@ -270,7 +270,8 @@ fn extract_object(
     )?;
 
     let t = Instant::now();
-    let (mesh, mesh_report) = mesh_field(field, &obj.name, &opts.mesh)
+    let up = DVec3::from_array(frame.up);
+    let (mesh, mesh_report) = mesh_field(field, &obj.name, &opts.mesh, Some(up))
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
     write_mesh(&mesh, Some(frame), &dir.join("mesh.glb"))?;
     write_mesh(&mesh, Some(frame), &dir.join("mesh.ply"))?;

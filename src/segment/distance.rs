@@ -2,6 +2,7 @@
 //! parabolas), used to keep prompts and votes away from mask edges and to find a mask's most
 //! interior point.
 
+use crate::util::lattice::squared_distance_1d;
 use crate::util::mask::is_object;
 use image::GrayImage;
 
@@ -28,13 +29,13 @@ fn edt(mask: &GrayImage, is_target: impl Fn(u8) -> bool, outside_is_target: bool
         for y in 0..ph {
             buf[y] = f[y * pw + x];
         }
-        let d = edt_1d(&buf[..ph]);
+        let d = squared_distance_1d(&buf[..ph]);
         for y in 0..ph {
             f[y * pw + x] = d[y];
         }
     }
     for y in 0..ph {
-        let d = edt_1d(&f[y * pw..(y + 1) * pw]);
+        let d = squared_distance_1d(&f[y * pw..(y + 1) * pw]);
         f[y * pw..(y + 1) * pw].copy_from_slice(&d);
     }
     let mut out = vec![0f32; w * h];
@@ -44,47 +45,6 @@ fn edt(mask: &GrayImage, is_target: impl Fn(u8) -> bool, outside_is_target: bool
         }
     }
     out
-}
-
-/// Squared distance transform in 1-D.
-fn edt_1d(f: &[f32]) -> Vec<f32> {
-    let n = f.len();
-    let mut d = vec![0f32; n];
-    let mut v = vec![0usize; n];
-    let mut z = vec![0f32; n + 1];
-    let mut k = 0usize;
-    z[0] = f32::NEG_INFINITY;
-    z[1] = f32::INFINITY;
-    for q in 1..n {
-        loop {
-            let p = v[k];
-            let s = ((f[q] + (q * q) as f32) - (f[p] + (p * p) as f32))
-                / (2.0 * q as f32 - 2.0 * p as f32);
-            if s <= z[k] && k > 0 {
-                k -= 1;
-            } else if s <= z[k] {
-                // k == 0 and the new parabola dominates from -inf: replace.
-                v[0] = q;
-                z[1] = f32::INFINITY;
-                break;
-            } else {
-                k += 1;
-                v[k] = q;
-                z[k] = s;
-                z[k + 1] = f32::INFINITY;
-                break;
-            }
-        }
-    }
-    k = 0;
-    for (q, dq) in d.iter_mut().enumerate() {
-        while z[k + 1] < q as f32 {
-            k += 1;
-        }
-        let p = v[k];
-        *dq = (q as f32 - p as f32).powi(2) + f[p];
-    }
-    d
 }
 
 /// Signed distance to the mask's edge: positive inside (distance to the nearest outside pixel,
