@@ -368,3 +368,27 @@ fn transforms_json_has_the_colmap_poses() {
         assert_eq!((d.width, d.height), (ca.width, ca.height));
     }
 }
+
+/// A reader that closes the pipe early (`objnerf info ... | head -1`) ends the command quietly,
+/// by SIGPIPE as other command-line tools end, not with a panic.
+#[test]
+fn a_closed_stdout_pipe_ends_the_command_without_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(common::objnerf_bin())
+        .args(["info", "--json"])
+        .arg(shared_scene())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        out.status.success() || out.status.signal() == Some(libc::SIGPIPE),
+        "{:?}: {stderr}",
+        out.status
+    );
+}

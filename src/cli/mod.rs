@@ -89,6 +89,7 @@ enum Command {
 
 /// Parse the command line, run the command, print an error and exit 1 if it failed.
 pub fn main() -> ExitCode {
+    restore_sigpipe();
     let matches = Cli::command().get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     // `segment` and `extract` read the order of their --view/--object/--point options.
@@ -99,6 +100,17 @@ pub fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Rust ignores SIGPIPE, so `println!` into a closed pipe (`objnerf mesh ... | head -1`)
+/// panicked; with the default action the process ends quietly, as other command-line tools do.
+/// Commands print their results after their outputs are renamed into place (and a killed run's
+/// partial folder is cleaned up by the next run), so nothing is left half-written.
+fn restore_sigpipe() {
+    // SAFETY: setting a signal's disposition to its default before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 
