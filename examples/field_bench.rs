@@ -4,7 +4,7 @@
 //!
 //! cargo run --release --example field_bench -- DATA_DIR DOWNSCALE SECONDS [SH_DEGREE] [STEPS]
 //! cargo run --release --example field_bench -- demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]
-//!     (FIELD_STEPS=N: N steps instead of the time budget; FIELD_LR as below)
+//!     (FIELD_STEPS=N: N steps instead of the time budget; FIELD_LR, FIELD_LR_FINAL as below)
 //!
 //! `examples/field_pareto.rs` runs a sweep of these (one process each, for peak RSS) and draws
 //! the chart.
@@ -48,6 +48,12 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
     let mut train = TrainConfig::default();
     if let Some((a, b)) = pair("FIELD_LR") {
         (train.lr_density, train.lr_color) = (a, b);
+    }
+    if let Some(v) = env("FIELD_LR_FINAL") {
+        train.lr_final = v;
+    }
+    if let Some(v) = env("FIELD_SEED") {
+        train.seed = v;
     }
     let steps: Option<usize> = env("FIELD_STEPS");
     if let Some(n) = steps {

@@ -358,14 +358,16 @@ pub fn mesh_model(
 ) -> Result<(Mesh, MeshOutput)> {
     let format = MeshFormat::of(out)?;
     let model = crate::field::io::load_field(model_path)?;
-    // PLY keeps the capture's frame: no up direction needed.
-    let frame = match format.needs_frame() {
-        true => Some(GltfFrame::for_model(&model, up)?),
-        false => GltfFrame::for_model(&model, up).ok(),
-    };
-    let up = frame.as_ref().map(|f| DVec3::from_array(f.up));
+    // The fill uses up where it is known; a model with nothing to mesh says so before a missing
+    // up does. PLY keeps the capture's frame: no up direction needed.
+    let frame = GltfFrame::for_model(&model, up);
+    let up = frame.as_ref().ok().map(|f| DVec3::from_array(f.up));
     let (mesh, report) = mesh_field(&model.field, name, opts, up)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
+    let frame = match format.needs_frame() {
+        true => Some(frame?),
+        false => frame.ok(),
+    };
     super::io::write_mesh(&mesh, frame.as_ref(), out)?;
     let (lo, hi) = mesh.bounds();
     Ok((
