@@ -7,12 +7,12 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
+use super::fill::{fill_cavities, GridUp, SEAL_VOXELS};
 use super::frame::GltfFrame;
 use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::model::{sigmoid, Field};
-use crate::util::lattice::{face_neighbours, squared_distance_to};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -60,7 +60,7 @@ pub struct FieldMeshReport {
 }
 
 /// Raw density below which a sample is empty (unoccupied cells get it).
-const EMPTY: f32 = -1.0e4;
+pub(super) const EMPTY: f32 = -1.0e4;
 
 /// The raw density level matching an opacity per finest voxel.
 pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
@@ -240,102 +240,6 @@ pub fn mesh_field(
     Ok((mesh, report))
 }
 
-/// Holes in an object's observed shell narrower than twice this many finest voxels are sealed
-/// before its inside is told from its outside ([`fill_cavities`]). Measured on the demo
-/// objects (extract at 1500 steps, Chamfer % of the true box diagonal, mug / sphere / box /
-/// torus): no sealing 1.61 / 1.84 / 1.94 / 1.27; 2 voxels 1.84 / 1.89 / 1.99 / 0.62; 3 voxels
-/// 1.60 / 0.84 / 1.35 / 0.59; 4 voxels 1.66 / 0.80 / 0.98 / 0.61; 6 voxels 1.84 / 0.79 / 1.20 /
-/// 0.66 (with the climb rule; see `examples/results/field.md`).
-pub const SEAL_VOXELS: f32 = 4.0;
-
-/// Which way is up in a sample grid: the grid axis closest to the capture's up direction, and
-/// whether up is along it or against it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GridUp {
-    pub axis: usize,
-    pub positive: bool,
-}
-
-impl GridUp {
-    /// The axis of `up` (world, the box's frame) with the largest component.
-    pub fn of(up: DVec3) -> GridUp {
-        let a = up.abs();
-        let axis = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        GridUp {
-            axis,
-            positive: up[axis] >= 0.0,
-        }
-    }
-}
-
-/// Make solid the empty samples that are inside the object: below the iso-level, not space the
-/// field's occupancy released (some ray saw through it), and not reached from outside.
-///
-/// A field trained on an object's views is a shell: its inside is never seen, so density there
-/// stays near its initial value and marching cubes finds a second, inner surface under the real
-/// one. Outside is what a path of empty samples reaches from the grid's border, kept `seal`
-/// samples clear of the solid (so a hole in the shell narrower than twice that, where the
-/// surface came out soft, does not let it in) and then grown back by `seal` towards the solid.
-/// With `up` known the path starts from the top and side faces and never steps up: an object
-/// standing on the ground is never seen from below, and its shell is open there (the demo
-/// sphere and box were hollow, an inner shell 1-3 cm under the outer one); a cup, open at the
-/// top, is entered from above and stays open. Returns the number of samples filled.
-pub fn fill_cavities(
-    values: &mut [f32],
-    dims: [usize; 3],
-    iso: f32,
-    seal: f32,
-    up: Option<GridUp>,
-) -> usize {
-    let strides = [1, dims[0], dims[0] * dims[1]];
-    let coord = |i: usize, a: usize| (i / strides[a]) % dims[a];
-    let r2 = seal * seal;
-    let solid: Vec<bool> = values.iter().map(|&v| v > iso).collect();
-    let blocked: Vec<bool> = squared_distance_to(&solid, dims)
-        .iter()
-        .map(|&d| d <= r2)
-        .collect();
-    let source = |i: usize| {
-        (0..3).any(|a| {
-            let c = coord(i, a);
-            let bottom = up.filter(|u| u.axis == a).map(|u| u.positive);
-            (c == 0 && bottom != Some(true)) || (c + 1 == dims[a] && bottom != Some(false))
-        })
-    };
-    let mut outside = vec![false; values.len()];
-    let mut stack: Vec<usize> = (0..values.len())
-        .filter(|&i| !blocked[i] && source(i))
-        .collect();
-    stack.iter().for_each(|&i| outside[i] = true);
-    while let Some(i) = stack.pop() {
-        face_neighbours(i, dims, |j| {
-            let climbs = up.is_some_and(|u| {
-                let (ci, cj) = (coord(i, u.axis), coord(j, u.axis));
-                ci != cj && (cj > ci) == u.positive
-            });
-            if !climbs && !outside[j] && !blocked[j] {
-                outside[j] = true;
-                stack.push(j);
-            }
-        });
-    }
-    let near_outside = squared_distance_to(&outside, dims);
-    let mut filled = 0;
-    for (i, v) in values.iter_mut().enumerate() {
-        if *v <= iso && *v > EMPTY && near_outside[i] > r2 {
-            *v = iso + 1.0;
-            filled += 1;
-        }
-    }
-    filled
-}
-
 /// What `objnerf mesh` wrote.
 #[derive(Clone, Debug, Serialize)]
 pub struct MeshOutput {
@@ -380,107 +284,4 @@ pub fn mesh_model(
             bounds_max: hi,
         },
     ))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A box shell of `n`^3 samples with walls at 2 and n - 3 (inside 0, walls 1), z up.
-    fn shell(n: usize) -> (Vec<f32>, impl Fn(usize, usize, usize) -> usize) {
-        let idx = move |x: usize, y: usize, z: usize| x + n * (y + n * z);
-        let mut v = vec![0.0f32; n * n * n];
-        let (lo, hi) = (2, n - 3);
-        for z in lo..=hi {
-            for y in lo..=hi {
-                for x in lo..=hi {
-                    let wall = [x, y, z].iter().any(|&c| c == lo || c == hi);
-                    v[idx(x, y, z)] = if wall { 1.0 } else { 0.0 };
-                }
-            }
-        }
-        (v, idx)
-    }
-
-    const UP: Option<GridUp> = Some(GridUp {
-        axis: 2,
-        positive: true,
-    });
-
-    #[test]
-    fn a_hollow_shell_becomes_solid_and_an_open_cup_stays_open() {
-        let n = 12;
-        let (v, idx) = shell(n);
-        let mut closed = v.clone();
-        assert_eq!(
-            fill_cavities(&mut closed, [n, n, n], 0.5, 0.0, None),
-            6 * 6 * 6
-        );
-        // Open the top: the inside now connects to the border, from above too.
-        let mut cup = v.clone();
-        for y in 3..=8 {
-            for x in 3..=8 {
-                cup[idx(x, y, 9)] = 0.0;
-            }
-        }
-        assert_eq!(
-            fill_cavities(&mut cup.clone(), [n, n, n], 0.5, 0.0, None),
-            0
-        );
-        // Sealing rounds the inner edges and corners off (closing), nothing more.
-        let rounded = fill_cavities(&mut cup, [n, n, n], 0.5, 1.0, UP);
-        assert!(rounded < 216 / 5, "{rounded}");
-        assert_eq!(cup[idx(5, 5, 5)], 0.0);
-    }
-
-    #[test]
-    fn a_shell_open_below_or_holed_is_filled_and_seen_space_never() {
-        let n = 16;
-        let (v, idx) = shell(n);
-        let inside = 10 * 10 * 10;
-        // Open at the bottom (an object standing on the ground): filled only when the flood
-        // may not climb into it.
-        let mut open_below = v.clone();
-        for y in 3..=12 {
-            for x in 3..=12 {
-                open_below[idx(x, y, 2)] = 0.0;
-            }
-        }
-        assert_eq!(
-            fill_cavities(&mut open_below.clone(), [n, n, n], 0.5, 0.0, None),
-            0
-        );
-        // The bottom wall's layer is filled too: the flood only reaches it from below.
-        assert_eq!(
-            fill_cavities(&mut open_below, [n, n, n], 0.5, 0.0, UP),
-            inside + 10 * 10
-        );
-        // A hole 2 samples wide in a side wall: sealed at 1.5 samples, not at 0 (then the flood
-        // comes in through it and fills what lies no higher than the hole).
-        let mut holed = v.clone();
-        for z in 7..=8 {
-            for y in 7..=8 {
-                holed[idx(13, y, z)] = 0.0;
-            }
-        }
-        assert_eq!(
-            fill_cavities(&mut holed.clone(), [n, n, n], 0.5, 0.0, None),
-            0
-        );
-        assert_eq!(
-            fill_cavities(&mut holed.clone(), [n, n, n], 0.5, 0.0, UP),
-            4 * 10 * 10
-        );
-        assert_eq!(
-            fill_cavities(&mut holed, [n, n, n], 0.5, 1.5, UP),
-            inside + 4
-        );
-        // Space the occupancy released inside stays empty.
-        let mut carved = v.clone();
-        carved[idx(7, 7, 7)] = EMPTY;
-        assert_eq!(
-            fill_cavities(&mut carved, [n, n, n], 0.5, 0.0, None),
-            inside - 1
-        );
-    }
 }

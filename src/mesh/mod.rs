@@ -2,6 +2,7 @@
 //! removed, normals), and writers for glTF binary, PLY and OBJ.
 
 pub mod checks;
+pub mod fill;
 pub mod frame;
 pub mod from_field;
 pub mod gltf;
