@@ -1,8 +1,11 @@
 //! Filling an object mesh's unseen inside: what a flood from outside cannot reach is solid.
 
-use super::from_field::EMPTY;
 use crate::util::lattice::{face_neighbours, squared_distance_to};
 use glam::DVec3;
+
+/// Raw density below which a sample is empty: unoccupied cells get it (space the occupancy
+/// released, which the fill leaves empty).
+pub const EMPTY: f32 = -1.0e4;
 
 /// Holes in an object's observed shell narrower than twice this many finest voxels are sealed
 /// before its inside is told from its outside ([`fill_cavities`]). Measured on the demo

@@ -7,7 +7,7 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
-use super::fill::{fill_cavities, GridUp, SEAL_VOXELS};
+use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
 use super::frame::GltfFrame;
 use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
@@ -58,9 +58,6 @@ pub struct FieldMeshReport {
     pub vertices: usize,
     pub triangles: usize,
 }
-
-/// Raw density below which a sample is empty (unoccupied cells get it).
-pub(super) const EMPTY: f32 = -1.0e4;
 
 /// The raw density level matching an opacity per finest voxel.
 pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
