@@ -458,18 +458,19 @@ fn mark_corner_bricks(need: &mut [bool], bd: [usize; 3], c: [usize; 3]) {
 mod tests {
     use super::*;
 
+    /// A field over the unit cube, alpha_init 0.01.
+    fn unit_cube_field(sh_degree: u32, dims: [usize; 3]) -> Field {
+        let config = FieldConfig {
+            sh_degree,
+            alpha_init: 0.01,
+            base_voxel: 0.1,
+        };
+        Field::new(config, Vec3::ZERO, Vec3::ONE, dims)
+    }
+
     #[test]
     fn shift_gives_alpha_init() {
-        let f = Field::new(
-            FieldConfig {
-                sh_degree: 1,
-                alpha_init: 0.01,
-                base_voxel: 0.1,
-            },
-            Vec3::ZERO,
-            Vec3::ONE,
-            [5, 5, 5],
-        );
+        let f = unit_cube_field(1, [5, 5, 5]);
         let a = 1.0 - (-softplus(f.shift())).exp();
         assert!((a - 0.01).abs() < 1e-5);
         assert_eq!(f.grid.channels, 13);
@@ -478,16 +479,7 @@ mod tests {
 
     #[test]
     fn upsampling_keeps_occupancy_and_extent() {
-        let mut f = Field::new(
-            FieldConfig {
-                sh_degree: 0,
-                alpha_init: 0.01,
-                base_voxel: 0.1,
-            },
-            Vec3::ZERO,
-            Vec3::ONE,
-            [5, 5, 5],
-        );
+        let mut f = unit_cube_field(0, [5, 5, 5]);
         f.fill_occupancy(false);
         f.set_occupied([0, 0, 0], true);
         f.upsample([9, 9, 9]);
@@ -500,16 +492,7 @@ mod tests {
 
     #[test]
     fn occupying_released_cells_brings_their_bricks_back_and_keeps_every_value() {
-        let mut f = Field::new(
-            FieldConfig {
-                sh_degree: 0,
-                alpha_init: 0.01,
-                base_voxel: 0.1,
-            },
-            Vec3::ZERO,
-            Vec3::ONE,
-            [13, 13, 13],
-        );
+        let mut f = unit_cube_field(0, [13, 13, 13]);
         for (i, x) in f.grid.data.iter_mut().enumerate() {
             *x = (i as f32 * 0.37).sin();
         }
