@@ -9,11 +9,13 @@
 //! `examples/field_pareto.rs` runs a sweep of these (one process each, for peak RSS) and draws
 //! the chart.
 //!
-//! Environment overrides for sweeps: FIELD_BATCH, FIELD_STEP (sample spacing in voxels),
-//! FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and grid scale), FIELD_PRUNE (steps
-//! between occupancy updates), FIELD_TV ("density,colour"), FIELD_LR ("density,colour"),
-//! FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB, FIELD_CARVE (carve weight before each
-//! growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT.
+//! Environment overrides for sweeps: FIELD_BATCH, FIELD_RUN (pixels per run of neighbours a
+//! batch is drawn in; 0 chooses), FIELD_SPARSE (sparsity loss weight), FIELD_STEP (sample
+//! spacing in voxels), FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and grid scale),
+//! FIELD_PRUNE (steps between occupancy updates), FIELD_TV ("density,colour"), FIELD_LR
+//! ("density,colour"), FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB, FIELD_CARVE (carve
+//! weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT; FIELD_SEED, FIELD_RUN and
+//! FIELD_SPARSE apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -54,6 +56,12 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
     }
     if let Some(v) = env("FIELD_SEED") {
         train.seed = v;
+    }
+    if let Some(v) = env("FIELD_RUN") {
+        train.ray_run = v;
+    }
+    if let Some(v) = env("FIELD_SPARSE") {
+        train.sparsity_weight = v;
     }
     let steps: Option<usize> = env("FIELD_STEPS");
     if let Some(n) = steps {
@@ -143,6 +151,12 @@ fn main() -> objnerf::Result<()> {
     }
     if let Some(v) = env("FIELD_BATCH") {
         cfg.batch = v;
+    }
+    if let Some(v) = env("FIELD_RUN") {
+        cfg.ray_run = v;
+    }
+    if let Some(v) = env("FIELD_SPARSE") {
+        cfg.sparsity_weight = v;
     }
     if let Some(v) = env("FIELD_CARVE") {
         cfg.carve_weight = v;

@@ -233,24 +233,34 @@ impl<'a> Marcher<'a> {
     }
 }
 
-/// Backward of [`forward`] for upstream gradients `g_rgb` (dL/dC), `g_alpha` (dL/dA),
-/// `g_depth` (dL/d depth) and, if not empty, `g_weights` (dL/dw_i for each sample's weight
-/// w_i = T_i a_i, e.g. from [`distortion`]). For each kept sample, `emit(sample, grad)` receives
-/// the gradient of the loss with respect to the interpolated channels [raw density, SH
-/// coefficients].
-#[allow(clippy::too_many_arguments)]
+/// The loss's gradients with respect to one ray's outputs, for [`backward`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RayGrad<'a> {
+    /// dL/dC, dL/dA and dL/d depth.
+    pub rgb: [f32; 3],
+    pub alpha: f32,
+    pub depth: f32,
+    /// dL/dw_i for each sample's weight w_i = T_i a_i, if not empty (e.g. from [`distortion`]).
+    pub weights: &'a [f32],
+    /// dL/da_i, the same for every sample: the sparsity loss L = lambda sum_i a_i over the
+    /// ray's kept samples (what lies behind the opaque part is not kept, so hidden insides
+    /// are not emptied).
+    pub alpha_each: f32,
+}
+
+/// Backward of [`forward`] for the loss gradients `g`. For each kept sample, `emit(sample,
+/// grad)` receives the gradient of the loss with respect to the interpolated channels [raw
+/// density, SH coefficients].
 pub fn backward(
     f: &Field,
     opt: &RenderOptions,
     d: Vec3,
     bg: [f32; 3],
     samples: &[Sample],
-    g_rgb: [f32; 3],
-    g_alpha: f32,
-    g_depth: f32,
-    g_weights: &[f32],
+    g: &RayGrad,
     mut emit: impl FnMut(&Sample, &[f32]),
 ) {
+    let (g_rgb, g_alpha, g_depth, g_weights) = (g.rgb, g.alpha, g.depth, g.weights);
     let k = f.sh_k();
     let ch = f.grid.channels;
     let mut basis = [0f32; 9];
@@ -270,7 +280,7 @@ pub fn backward(
             g_a += g_rgb[c] * (s.rgb[c] - r_rgb[c]);
         }
         g_a += g_alpha * (1.0 - r_a) + (value - r_d);
-        g_a *= s.trans;
+        g_a = g_a * s.trans + g.alpha_each;
         // d alpha / d raw = (1 - alpha) * delta * sigmoid(raw)
         grad[0] = g_a * (1.0 - s.alpha) * delta * s.dsp;
         for c in 0..3 {
@@ -446,7 +456,8 @@ mod tests {
     }
 
     /// The hand-written backward against central finite differences of the forward, over every
-    /// grid value that the ray touches, for each SH degree: colour, alpha, depth and distortion.
+    /// grid value that the ray touches, for each SH degree: colour, alpha, depth, distortion and
+    /// sparsity.
     #[test]
     fn gradients_match_finite_differences() {
         for degree in 0..=2 {
@@ -462,14 +473,19 @@ mod tests {
             let mut samples = Vec::new();
             forward(&f0, &opt, o, d, 0.3, bg, &mut samples);
             assert!(!samples.is_empty());
-            // The linear functional plus the distortion loss (weight DIST), in base-voxel units.
+            // The linear functional plus the distortion loss (weight DIST), in base-voxel units,
+            // and the sparsity loss (weight SPARSE).
             const DIST: f32 = 0.5;
+            const SPARSE: f32 = 0.3;
             let delta = opt.step * f0.voxel / f0.config.base_voxel;
             let unit = f0.config.base_voxel;
             let total = |f: &Field| {
                 let mut s = Vec::new();
                 let out = forward(f, &opt, o, d, 0.3, bg, &mut s);
-                loss(&out) + (DIST * distortion(&s, unit, delta, &mut Vec::new())) as f64
+                let sparsity: f32 = s.iter().map(|x| x.alpha).sum();
+                loss(&out)
+                    + (DIST * distortion(&s, unit, delta, &mut Vec::new())) as f64
+                    + (SPARSE * sparsity) as f64
             };
             let mut g_w = Vec::new();
             distortion(&samples, unit, delta, &mut g_w);
@@ -484,10 +500,13 @@ mod tests {
                 d,
                 bg,
                 &samples,
-                [0.7, -1.1, 0.4],
-                0.9,
-                0.3,
-                &g_w,
+                &RayGrad {
+                    rgb: [0.7, -1.1, 0.4],
+                    alpha: 0.9,
+                    depth: 0.3,
+                    weights: &g_w,
+                    alpha_each: SPARSE,
+                },
                 |s, g| {
                     let z = s.base / (nx * ny);
                     let y = (s.base / nx) % ny;
