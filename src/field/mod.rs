@@ -40,11 +40,12 @@
 //! - **Deterministic multi-threading**: fixed 256-ray chunks with per-ray seeded randomness write
 //!   gradient records bucketed by z-slab; each slab sums its records in chunk order. No atomics,
 //!   no per-thread dense gradient copies, and the same grid for a seed at any thread count.
-//! - **Batches of neighbouring rays** once the grid outgrows the cache (`TrainConfig::ray_run`):
-//!   runs of 8 pixels along a row share grid corners, so gathers and the gradient scatter hit
-//!   cache: 25-30% more steps a second on lego 200^2, though no better test PSNR at 60 or 300 s
-//!   (alike rays teach less a step); the demo's scene field reaches its plateau sooner (24.46 dB
-//!   in 117 s instead of 153; examples/results/field.md). Small grids draw rays one by one.
+//! - **Scene fields draw batches as runs of neighbouring pixels** once the grid outgrows the
+//!   cache (`TrainConfig::ray_run`): runs of 8 along a row share grid corners, so gathers and
+//!   the gradient scatter hit cache, and the demo's scene field reaches its plateau sooner
+//!   (24.46 dB in 117 s instead of 153). Object fields draw single rays: on lego the extra steps
+//!   (25-58%) bought no test PSNR, and at a fixed step count fox's head lost 0.18 dB
+//!   (examples/results/field.md).
 //! - **Sparse Adam** on the vertices a batch touched (sorted, so the pass sweeps memory forward);
 //!   TV on those vertices only. TV is off by default: with our sum-scaled loss even 1e-6 cost
 //!   11 dB at 100^2 in 40 s (it overpowers the per-ray data gradient); keep it <= 1e-8 if used.

@@ -23,8 +23,8 @@ pub struct TrainConfig {
     /// Rays per step.
     pub batch: usize,
     /// The batch is drawn in runs of this many neighbouring pixels of a row
-    /// ([`RaySet::draw_runs`]; 1: every ray drawn on its own; 0: [`AUTO_RAY_RUN`] while the
-    /// grid's parameters outgrow the cache, else 1).
+    /// ([`RaySet::draw_runs`]; 1: every ray drawn on its own, the default; 0: [`AUTO_RAY_RUN`]
+    /// while the grid's parameters outgrow the cache, else 1, as scene fields train).
     pub ray_run: usize,
     /// Most steps; the learning rates decay over this many.
     pub steps: usize,
@@ -78,7 +78,7 @@ impl Default for TrainConfig {
         TrainConfig {
             seed: 0,
             batch: 2048,
-            ray_run: 0,
+            ray_run: 1,
             steps: 20_000,
             // Twice the rates of before, decaying to 0.03 of them (was 0.1): lego 200^2 60 s
             // 30.86 -> 31.32 dB; demo objects' held-out PSNR over seeds 0-3 not lower (mug /
@@ -113,11 +113,13 @@ impl Default for TrainConfig {
     }
 }
 
-/// Runs of neighbouring rays pay where the grid's parameters are larger than the cache: the
-/// demo's scene field reached its plateau (24.46 dB held out) in 117 s instead of 153, and lego
-/// 200^2 took 25-30% more steps in the same time (its test PSNR the same: alike rays teach less
-/// a step). On a demo object (4 MiB) a step is no faster, so only the loss shows: held-out PSNR
-/// -0.1 to -0.2 dB at 3000 steps (examples/results/field.md).
+/// Runs of neighbouring rays pay where the grid's parameters are larger than the cache, and
+/// only where the time matters more than the steps: the demo's scene field reached its plateau
+/// (24.46 dB held out) in 117 s instead of 153, so scene fields use them; lego 200^2 and 400^2
+/// took 25-58% more steps in the same time for the same test PSNR (alike rays teach less a
+/// step), and fox's head at its 3000 steps took 54 instead of 89 s but scored 20.61 against
+/// 20.79 dB, so object fields draw single rays. On a small grid (a demo object, 4 MiB) a step is
+/// no faster (examples/results/field.md).
 pub const AUTO_RAY_RUN: usize = 8;
 const AUTO_RAY_RUN_BYTES: usize = 8 << 20;
 
