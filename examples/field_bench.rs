@@ -10,12 +10,12 @@
 //! the chart.
 //!
 //! Environment overrides for sweeps: FIELD_BATCH, FIELD_RUN (pixels per run of neighbours a
-//! batch is drawn in; 0 chooses), FIELD_SPARSE (sparsity loss weight), FIELD_STEP (sample
-//! spacing in voxels), FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and grid scale),
-//! FIELD_PRUNE (steps between occupancy updates), FIELD_TV ("density,colour"), FIELD_LR
-//! ("density,colour"), FIELD_VPP (voxels per pixel footprint), FIELD_MEM_MB, FIELD_CARVE (carve
-//! weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT; FIELD_SEED, FIELD_RUN and
-//! FIELD_SPARSE apply to `demo` too.
+//! batch is drawn in; default 1; 0: runs of 8 on large grids), FIELD_SPARSE (sparsity loss
+//! weight), FIELD_STEP (sample spacing in voxels), FIELD_STAGES ("0:0.5,0.3:1": fraction of the
+//! schedule and grid scale), FIELD_PRUNE (steps between occupancy updates), FIELD_TV
+//! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
+//! FIELD_MEM_MB, FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL,
+//! FIELD_ALPHA_INIT; FIELD_SEED, FIELD_RUN and FIELD_SPARSE apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;

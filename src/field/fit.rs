@@ -305,9 +305,6 @@ impl SceneFit {
             stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
             distortion_weight: opts.distortion_weight,
             prune_alpha: opts.prune_alpha,
-            // Runs of neighbouring rays once the grid outgrows the cache: the ring's plateau in
-            // 117 s instead of 153 at the same held-out PSNR ([`super::train::AUTO_RAY_RUN`]).
-            ray_run: 0,
             ..Default::default()
         };
         let seeds: Vec<(glam::Vec3, [u8; 3])> = scene

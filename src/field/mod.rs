@@ -40,11 +40,10 @@
 //! - **Deterministic multi-threading**: fixed 256-ray chunks with per-ray seeded randomness write
 //!   gradient records bucketed by z-slab; each slab sums its records in chunk order. No atomics,
 //!   no per-thread dense gradient copies, and the same grid for a seed at any thread count.
-//! - **Scene fields draw batches as runs of neighbouring pixels** once the grid outgrows the
-//!   cache (`TrainConfig::ray_run`): runs of 8 along a row share grid corners, so gathers and
-//!   the gradient scatter hit cache, and the demo's scene field reaches its plateau sooner
-//!   (24.46 dB in 117 s instead of 153). Object fields draw single rays: on lego the extra steps
-//!   (25-58%) bought no test PSNR, and at a fixed step count fox's head lost 0.18 dB
+//! - **Single rays per batch, not runs of neighbouring pixels** (`TrainConfig::ray_run`, an
+//!   option): runs share grid corners, so gathers and the gradient scatter hit cache and steps
+//!   get 25-58% cheaper on large grids, but their rays teach less a step: no better PSNR on lego
+//!   at a fixed time, 0.2-0.4 dB less on fox and the mug's removal at a fixed step count
 //!   (examples/results/field.md).
 //! - **Sparse Adam** on the vertices a batch touched (sorted, so the pass sweeps memory forward);
 //!   TV on those vertices only. TV is off by default: with our sum-scaled loss even 1e-6 cost

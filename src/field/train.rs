@@ -24,7 +24,7 @@ pub struct TrainConfig {
     pub batch: usize,
     /// The batch is drawn in runs of this many neighbouring pixels of a row
     /// ([`RaySet::draw_runs`]; 1: every ray drawn on its own, the default; 0: [`AUTO_RAY_RUN`]
-    /// while the grid's parameters outgrow the cache, else 1, as scene fields train).
+    /// while the grid's parameters outgrow the cache, else 1).
     pub ray_run: usize,
     /// Most steps; the learning rates decay over this many.
     pub steps: usize,
@@ -113,13 +113,13 @@ impl Default for TrainConfig {
     }
 }
 
-/// Runs of neighbouring rays pay where the grid's parameters are larger than the cache, and
-/// only where the time matters more than the steps: the demo's scene field reached its plateau
-/// (24.46 dB held out) in 117 s instead of 153, so scene fields use them; lego 200^2 and 400^2
-/// took 25-58% more steps in the same time for the same test PSNR (alike rays teach less a
-/// step), and fox's head at its 3000 steps took 54 instead of 89 s but scored 20.61 against
-/// 20.79 dB, so object fields draw single rays. On a small grid (a demo object, 4 MiB) a step is
-/// no faster (examples/results/field.md).
+/// Runs of neighbouring rays make steps cheaper where the grid's parameters are larger than the
+/// cache, but a batch of alike rays teaches less a step: lego 200^2 and 400^2 took 25-58% more
+/// steps in the same time for the same test PSNR; fox's head at 3000 steps took 54 instead of
+/// 89 s but scored 20.61 against 20.79 dB; the demo mug's removal at 6000 steps 24.25 / 19.64 dB
+/// (full frame / inside the mug) against 24.54 / 20.08. The ring's scene field reached its
+/// plateau sooner (24.46 dB in 117 s instead of 153). So runs are an option, off by default
+/// (examples/results/field.md).
 pub const AUTO_RAY_RUN: usize = 8;
 const AUTO_RAY_RUN_BYTES: usize = 8 << 20;
 
