@@ -15,7 +15,8 @@
 //! schedule and grid scale), FIELD_PRUNE (steps between occupancy updates), FIELD_TV
 //! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
 //! FIELD_MEM_MB, FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL,
-//! FIELD_ALPHA_INIT; FIELD_SEED, FIELD_RUN and FIELD_SPARSE apply to `demo` too.
+//! FIELD_ALPHA_INIT, FIELD_SEED; FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN and FIELD_SPARSE
+//! apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -34,6 +35,26 @@ fn pair(name: &str) -> Option<(f32, f32)> {
     Some((a.parse().ok()?, b.parse().ok()?))
 }
 
+/// The overrides both benchmarks take: FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
+/// FIELD_SPARSE.
+fn optimiser_overrides(cfg: &mut TrainConfig) {
+    if let Some((a, b)) = pair("FIELD_LR") {
+        (cfg.lr_density, cfg.lr_color) = (a, b);
+    }
+    if let Some(v) = env("FIELD_LR_FINAL") {
+        cfg.lr_final = v;
+    }
+    if let Some(v) = env("FIELD_SEED") {
+        cfg.seed = v;
+    }
+    if let Some(v) = env("FIELD_RUN") {
+        cfg.ray_run = v;
+    }
+    if let Some(v) = env("FIELD_SPARSE") {
+        cfg.sparsity_weight = v;
+    }
+}
+
 /// `demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]`: one demo object from its true masks,
 /// scored on the held-out views (`demo::holdout::demo_object`).
 fn demo(args: &[String]) -> objnerf::Result<()> {
@@ -48,21 +69,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
         .unwrap_or(field::DepthMode::None);
     // FIELD_STEPS: a fixed step count instead of the time budget (the same result at any load).
     let mut train = TrainConfig::default();
-    if let Some((a, b)) = pair("FIELD_LR") {
-        (train.lr_density, train.lr_color) = (a, b);
-    }
-    if let Some(v) = env("FIELD_LR_FINAL") {
-        train.lr_final = v;
-    }
-    if let Some(v) = env("FIELD_SEED") {
-        train.seed = v;
-    }
-    if let Some(v) = env("FIELD_RUN") {
-        train.ray_run = v;
-    }
-    if let Some(v) = env("FIELD_SPARSE") {
-        train.sparsity_weight = v;
-    }
+    optimiser_overrides(&mut train);
     let steps: Option<usize> = env("FIELD_STEPS");
     if let Some(n) = steps {
         train.steps = n;
@@ -143,27 +150,16 @@ fn main() -> objnerf::Result<()> {
     if let Some((a, b)) = pair("FIELD_TV") {
         (cfg.tv_density, cfg.tv_color) = (a, b);
     }
-    if let Some((a, b)) = pair("FIELD_LR") {
-        (cfg.lr_density, cfg.lr_color) = (a, b);
-    }
     if let Some(v) = env("FIELD_STEP") {
         cfg.render.step = v;
     }
     if let Some(v) = env("FIELD_BATCH") {
         cfg.batch = v;
     }
-    if let Some(v) = env("FIELD_RUN") {
-        cfg.ray_run = v;
-    }
-    if let Some(v) = env("FIELD_SPARSE") {
-        cfg.sparsity_weight = v;
-    }
     if let Some(v) = env("FIELD_CARVE") {
         cfg.carve_weight = v;
     }
-    if let Some(v) = env("FIELD_LR_FINAL") {
-        cfg.lr_final = v;
-    }
+    optimiser_overrides(&mut cfg);
     let cpu0 = cpu_seconds();
     let t1 = std::time::Instant::now();
     let (mut trainer, rays, report) = field::prepare(&views, &[], &setup, cfg)?;

@@ -15,7 +15,7 @@ pub struct RaySet {
     /// depth pixels are too rare to be hit by uniform sampling).
     pub depth_rays: Vec<(u32, u32)>,
     /// Each view's image width, and where its rays start in `rays` (one past the last view's
-    /// end at the back), to find a pixel's neighbours for [`RaySet::draw_tiles`].
+    /// end at the back), to find a pixel's neighbours for [`RaySet::draw_runs`].
     widths: Vec<u32>,
     view_starts: Vec<usize>,
 }
@@ -66,9 +66,10 @@ impl RaySet {
 
     /// Draw `count` rays in runs of `run` neighbouring pixels along a row of one view (each run
     /// holds a random training ray at a random place in it, and only training rays, so a run at
-    /// a mask edge holds fewer; every training ray is drawn equally often). Neighbouring rays share grid corners: a batch of runs reads and
-    /// scatters through cache rather than memory. Runs rather than square tiles: at the same
-    /// speed-up, tiles' rays are more alike and lego trained worse (examples/results/field.md).
+    /// a mask edge holds fewer; every training ray is drawn equally often). Neighbouring rays
+    /// share grid corners: a batch of runs reads and scatters through cache rather than memory.
+    /// Runs rather than square tiles: at the same speed-up, tiles' rays are more alike and lego
+    /// trained worse (examples/results/field.md).
     pub fn draw_runs(&self, count: usize, run: usize, rng: &mut Rng, out: &mut Vec<(u32, u32)>) {
         let goal = out.len() + count;
         while out.len() < goal {
