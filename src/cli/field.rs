@@ -53,6 +53,11 @@ pub struct TrainCmd {
     /// Memory for the grid and optimiser state, MiB.
     #[arg(long, default_value_t = SetupConfig::default().memory_budget >> 20)]
     memory_mb: usize,
+    /// Pixels either side of a segmented mask's edge trained on the photo over the background
+    /// behind the object, where the mask may be a pixel or two off (0: the masks are exact,
+    /// e.g. 'truth:OBJECT').
+    #[arg(long, default_value_t = FitOptions::default().mask_band)]
+    mask_band: u32,
     /// Continue training this model.
     #[arg(long)]
     resume: Option<PathBuf>,
@@ -87,6 +92,7 @@ impl TrainCmd {
                 .filter(|(i, _)| is_held_out(*i, self.hold_out_every))
                 .map(|(_, im)| im.name.clone())
                 .collect(),
+            mask_band: self.mask_band,
         };
         let bars = Bars::default();
         bars.begin("train", opts.steps as u64);

@@ -46,6 +46,8 @@ fn fit_options(o: &DemoFieldOptions) -> FitOptions {
             memory_budget: o.memory_mb << 20,
             ..Default::default()
         },
+        // The true masks are exact.
+        mask_band: 0,
         ..Default::default()
     }
 }

@@ -7,9 +7,13 @@ use crate::util::mask::dilate_bits;
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// A boolean "may be the object" image per view: mask > 0, dilated by `radius` pixels.
+/// A boolean "may be the object" image per view: mask > 0 or in the mask's edge band, dilated
+/// by `radius` pixels.
 fn dilated_mask(v: &View, radius: usize) -> Vec<bool> {
-    let m: Vec<bool> = v.rgba.iter().map(|p| p[3] > 0).collect();
+    let mut m: Vec<bool> = v.rgba.iter().map(|p| p[3] > 0).collect();
+    for e in &v.edge {
+        m[e.px as usize] = true;
+    }
     dilate_bits(&m, [v.width as usize, v.height as usize], radius)
 }
 

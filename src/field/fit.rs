@@ -4,6 +4,7 @@
 
 use super::bounds::points_in_masks;
 use super::depth::{add_dense_depth, add_sparse_depth, spread_sparse_depth};
+use super::edge::add_edge_bands;
 use super::io::Model;
 use super::layout::{choose_space, SpaceChoice};
 use super::rays::RaySet;
@@ -55,6 +56,10 @@ pub struct FitOptions {
     pub setup: SetupConfig,
     /// Views left out of training (e.g. the ones segmentation found obstructed, or held out).
     pub exclude_views: Vec<String>,
+    /// Pixels either side of a segmented mask's edge whose colour target is the photo over the
+    /// background behind the object ([`super::edge`]; 0: masks taken as exact). Images' own
+    /// alpha is always exact.
+    pub mask_band: u32,
 }
 
 impl Default for FitOptions {
@@ -67,6 +72,7 @@ impl Default for FitOptions {
             steps: TrainConfig::default().steps,
             setup: SetupConfig::default(),
             exclude_views: vec![],
+            mask_band: 2,
         }
     }
 }
@@ -114,6 +120,9 @@ pub fn fit_scene(
     }
     let mut views = load_views(scene, masks, opts.downscale)?;
     let depth_targets = depth_and_training_views(&mut views, scene, opts)?;
+    if masks.is_segmented() {
+        add_edge_bands(&mut views, scene, opts.downscale, opts.mask_band)?;
+    }
     let cfg = TrainConfig {
         seed: opts.seed,
         steps: opts.steps,

@@ -55,6 +55,7 @@
 pub mod bounds;
 pub mod checks;
 pub mod depth;
+pub mod edge;
 pub mod eval;
 pub mod fit;
 pub mod grid;

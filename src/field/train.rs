@@ -7,6 +7,7 @@
 //! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
 //! the same order whatever the thread count, and two runs with one seed give identical grids.
 
+use super::edge::EdgePixel;
 use super::grid::{compact_buffer, Corners, Grid, BRICK, BRICK_VERTICES, NONE};
 use super::model::Field;
 use super::rays::RaySet;
@@ -936,10 +937,15 @@ impl StepContext<'_> {
             );
             let view = &self.views[vi as usize];
             let (o, d) = view.ray(px);
-            let bg = [r.f32(), r.f32(), r.f32()];
+            let mut bg = [r.f32(), r.f32(), r.f32()];
+            // A mask-edge pixel is rendered over the background estimated behind it.
+            let edge = view.edge_at(px);
+            if let Some(e) = edge {
+                bg = e.backdrop.map(|c| c as f32 / 255.0);
+            }
             let out = forward(field, &cfg.render, o, d, r.f32(), bg, &mut samples);
             nsamp += samples.len();
-            let l = self.ray_loss(view, px, bg, &out);
+            let l = self.ray_loss(view, px, bg, edge, &out);
             mse += l.sq_err;
             loss += l.loss;
             if samples.is_empty() {
@@ -990,13 +996,25 @@ impl StepContext<'_> {
 
     /// The losses of one ray: colour against the pixel composited on the ray's random
     /// background (which also supervises alpha), the squared alpha error, and the depth of the
-    /// opaque part against a depth target.
-    fn ray_loss(&self, view: &View, px: u32, bg: [f32; 3], out: &RayOut) -> RayLoss {
+    /// opaque part against a depth target. A mask-edge pixel (`edge`; `bg` is its backdrop)
+    /// has the photo as its colour target: the mask's alpha stays a (weak) prior there, and the
+    /// colour decides.
+    fn ray_loss(
+        &self,
+        view: &View,
+        px: u32,
+        bg: [f32; 3],
+        edge: Option<&EdgePixel>,
+        out: &RayOut,
+    ) -> RayLoss {
         let cfg = self.cfg;
         let inv_b = self.inv_b;
         let p = view.rgba[px as usize];
         let a = p[3] as f32 / 255.0;
-        let tgt = [0, 1, 2].map(|c| p[c] as f32 / 255.0 + (1.0 - a) * bg[c]);
+        let tgt = match edge {
+            Some(e) => e.photo.map(|c| c as f32 / 255.0),
+            None => [0, 1, 2].map(|c| p[c] as f32 / 255.0 + (1.0 - a) * bg[c]),
+        };
         let mut g_rgb = [0f32; 3];
         let mut e2 = 0f32;
         for c in 0..3 {

@@ -27,6 +27,15 @@ pub enum MaskSource {
 }
 
 impl MaskSource {
+    /// Masks drawn by a segmenter (a folder, the scene's mask files, masks in memory), whose
+    /// edges may be off by a pixel or two; an image's alpha and "all opaque" are exact.
+    pub fn is_segmented(&self) -> bool {
+        matches!(
+            self,
+            MaskSource::Dir(_) | MaskSource::Scene | MaskSource::Images(_)
+        )
+    }
+
     /// Parse the `--masks` option: `alpha`, `scene` (each view's mask_path), `truth:OBJECT` (the
     /// demo scene's `truth/masks/OBJECT/`, found at or above the scene path) or a folder.
     pub fn parse(s: &str, scene: &std::path::Path) -> Result<MaskSource> {
@@ -197,6 +206,10 @@ pub struct View {
     /// Pixels that carry a loss (None: all): a scene field leaves out what removed objects
     /// covered.
     pub loss_mask: Option<Vec<bool>>,
+    /// The band along the mask's edge, sorted by pixel (empty: the mask is taken as exact):
+    /// these pixels' colour target is the photo over the background behind them
+    /// ([`super::edge`]).
+    pub edge: Vec<super::edge::EdgePixel>,
 }
 
 impl View {
@@ -206,7 +219,16 @@ impl View {
             rgba,
             depth: None,
             loss_mask: None,
+            edge: Vec::new(),
         }
+    }
+
+    /// The edge-band pixel at `px`, if it is one.
+    pub fn edge_at(&self, px: u32) -> Option<&super::edge::EdgePixel> {
+        self.edge
+            .binary_search_by_key(&px, |e| e.px)
+            .ok()
+            .map(|i| &self.edge[i])
     }
 }
 
