@@ -8,21 +8,13 @@
 //! there only as the usual weak alpha term. Dropping that term too (tried) let the field grow a
 //! floor-coloured fringe wherever the floor's texture departs from the smooth estimate.
 
-use super::view::{downscale_premultiplied, View};
+use super::view::{downscale_premultiplied, EdgePixel, View};
 use crate::error::{Error, Result};
 use crate::scene::io::read_image;
 use crate::scene::Scene;
 use crate::util::inpaint::inpaint_harmonic;
 use crate::util::mask::{dilate_bits, MASK_THRESHOLD};
 use rayon::prelude::*;
-
-/// A pixel in a mask's edge band: its photo colour and the background estimated behind it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EdgePixel {
-    pub px: u32,
-    pub photo: [u8; 3],
-    pub backdrop: [u8; 3],
-}
 
 /// Give every view of `views` (the scene's images by name, downscaled by `factor`, masks as
 /// alpha) the edge band of its mask, `band` pixels either side of the edge. Views whose mask is

@@ -7,12 +7,11 @@
 //! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
 //! the same order whatever the thread count, and two runs with one seed give identical grids.
 
-use super::edge::EdgePixel;
 use super::grid::{compact_buffer, Corners, Grid, BRICK, BRICK_VERTICES, NONE};
 use super::model::Field;
 use super::rays::RaySet;
 use super::render::{backward, distortion, forward, RayGrad, RayOut, RenderOptions, Sample};
-use super::view::View;
+use super::view::{EdgePixel, View};
 use crate::util::Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

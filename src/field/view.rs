@@ -195,6 +195,15 @@ impl RayCamera {
     }
 }
 
+/// A pixel in the band along a segmented mask's edge ([`super::edge`]): its photo colour and
+/// the background estimated behind the object there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgePixel {
+    pub px: u32,
+    pub photo: [u8; 3],
+    pub backdrop: [u8; 3],
+}
+
 /// One training view: a camera and its pixels (colour premultiplied by the mask), downscaled.
 #[derive(Clone, Debug)]
 pub struct View {
@@ -209,7 +218,7 @@ pub struct View {
     /// The band along the mask's edge, sorted by pixel (empty: the mask is taken as exact):
     /// these pixels' colour target is the photo over the background behind them
     /// ([`super::edge`]).
-    pub edge: Vec<super::edge::EdgePixel>,
+    pub edge: Vec<EdgePixel>,
 }
 
 impl View {
@@ -224,7 +233,7 @@ impl View {
     }
 
     /// The edge-band pixel at `px`, if it is one.
-    pub fn edge_at(&self, px: u32) -> Option<&super::edge::EdgePixel> {
+    pub fn edge_at(&self, px: u32) -> Option<&EdgePixel> {
         self.edge
             .binary_search_by_key(&px, |e| e.px)
             .ok()
