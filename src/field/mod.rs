@@ -79,6 +79,7 @@ pub mod render;
 pub mod scene_checks;
 pub mod session;
 pub mod space;
+pub mod stereo;
 pub mod train;
 pub mod view;
 
