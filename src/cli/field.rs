@@ -37,9 +37,10 @@ pub struct TrainCmd {
     #[arg(long)]
     time_budget: Option<f64>,
     /// Depth supervision: sparse (the sparse 3D points), spread (their depths spread over each
-    /// view where nearby points agree on a surface), dense (depth images) or none. Default: none
-    /// for an object field, spread for a scene field (without depth a scene field has no
-    /// geometry to hold its views together).
+    /// view where nearby points agree on a surface), stereo (plane-sweep stereo between
+    /// neighbouring photos where it is clear), dense (depth images) or none. Default: none for an
+    /// object field, stereo for a scene field (without depth a scene field has no geometry to
+    /// hold its views together).
     #[arg(long)]
     depth: Option<DepthMode>,
     #[arg(long, default_value_t = FitOptions::default().seed)]

@@ -39,7 +39,8 @@ pub struct ExtractCmd {
     #[arg(long, default_value_t = ExtractOptions::default().fit.steps)]
     pub steps: usize,
     /// Depth supervision: sparse (the object's 3D points), spread (their depths spread over each
-    /// view where nearby points agree on a surface), dense (depth images) or none.
+    /// view where nearby points agree on a surface), stereo (plane-sweep stereo), dense (depth
+    /// images) or none.
     #[arg(long, default_value_t = ExtractOptions::default().fit.depth)]
     pub depth: DepthMode,
     #[arg(long, default_value_t = ExtractOptions::default().fit.seed)]
