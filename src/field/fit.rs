@@ -5,12 +5,12 @@
 use super::bounds::points_in_masks;
 use super::depth::{add_dense_depth, add_sparse_depth, spread_sparse_depth};
 use super::edge::add_edge_bands;
-use super::stereo::{add_stereo_depth, StereoOptions};
 use super::io::Model;
 use super::layout::{choose_space, SpaceChoice};
 use super::rays::RaySet;
 use super::scene_checks::{check_scene_fit, measure_scene_fit, SceneFitCheck};
 use super::session::{prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule};
+use super::stereo::{add_stereo_depth, StereoOptions};
 use super::train::{StepStats, TrainConfig, Trainer};
 use super::view::{load_views, MaskSource, View};
 use crate::error::{Error, Result};

@@ -80,7 +80,9 @@ pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions)
         let npx = (v.width * v.height) as usize;
         let carries = |p: usize| v.loss_mask.as_ref().is_none_or(|m| m[p]);
         let scale: Vec<f32> = (0..npx).map(|p| v.ray_scale(p as u32)).collect();
-        let mask: Vec<bool> = (0..npx).map(|p| v.rgba[p][3] >= 128 && carries(p)).collect();
+        let mask: Vec<bool> = (0..npx)
+            .map(|p| v.rgba[p][3] >= 128 && carries(p))
+            .collect();
         let d = v.depth.get_or_insert_with(|| vec![0.0; npx]);
         for p in 0..npx {
             if z[p] > 0.0 && d[p] == 0.0 && mask[p] {
