@@ -144,10 +144,7 @@ fn box_sum(a: &[f32], w: usize, h: usize) -> Vec<f32> {
     let mut rows = vec![0f32; a.len()];
     for y in 0..h {
         let r = &a[y * w..(y + 1) * w];
-        let mut acc = 0f32;
-        for x in 0..(RADIUS + 1).min(w) {
-            acc += r[x];
-        }
+        let mut acc: f32 = r.iter().take(RADIUS + 1).sum();
         for x in 0..w {
             rows[y * w + x] = acc;
             if x + RADIUS + 1 < w {
