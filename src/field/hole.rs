@@ -3,12 +3,13 @@
 //! A removal field is trained without the removed objects' pixels; what they hid in one view is
 //! learnt from the views that saw it (the paper's "inferred by other views"). Part of it no view
 //! saw (the ground under the object). [`find_unseen`] marks, per view, the hole pixels whose
-//! surface point (the trained field's depth there) no other view observed: it projects into that
-//! view outside its own hole and nothing nearer stands in the way (its rendered depth agrees).
-//! [`fill_unseen`] gives those pixels targets, so training can go on with them: colour and
-//! disparity inpainted harmonically from what surrounds the unseen part (a smooth continuation
-//! of the ground, never grey fog or floaters), the disparity as a depth target so the filled
-//! surface lies where the surroundings say. [`reopen_filled_surface`] gives the filled pixels
+//! surface point no other view observed: it projects into that view outside its own hole and
+//! nothing nearer stands in the way (its rendered depth agrees). The surface point is tried at
+//! the trained field's depth there and at the depth the hole's surroundings continue across it.
+//! [`fill_unseen`] gives those pixels targets, so training can go on with them (and draws them
+//! more often than the rest): colour and disparity inpainted harmonically from what surrounds
+//! the unseen part (a smooth continuation of the ground, never grey fog or floaters), the
+//! disparity as a depth target so the filled surface lies where the surroundings say. [`reopen_filled_surface`] gives the filled pixels
 //! that would render see-through (their cells carved away) cells to grow in.
 
 use super::eval::{render_view, Rendered};
@@ -28,6 +29,8 @@ pub const SAME_SURFACE_REL: f32 = 0.03;
 /// A hole pixel whose render is less opaque than this has no surface to look for elsewhere: it is
 /// unseen.
 const MIN_SURFACE_ALPHA: f32 = 0.5;
+/// A seen hole pixel lends its rendered colour to the fill only when its render is this opaque.
+const SOLID_ALPHA: f32 = 0.9;
 
 /// One view's hole.
 #[derive(Clone, Debug, Serialize)]
@@ -176,10 +179,19 @@ pub fn find_unseen(views: &[View], renders: &[Rendered], observers: usize) -> Ho
                 return Vec::new();
             }
             let v = &views[i];
+            let guess = depth_across_hole(v, &holes[i], &renders[i]);
             (0..(v.width * v.height) as usize)
                 .map(|p| {
-                    holes[i][p]
-                        && !seen_elsewhere(i, p as u32, &views[..observers], views, &holes, renders)
+                    if !holes[i][p] {
+                        return false;
+                    }
+                    let r = &renders[i];
+                    let rendered = (r.alpha[p] >= MIN_SURFACE_ALPHA).then_some(r.depth[p]);
+                    let guessed = (guess[p] > 0.0).then_some(guess[p]);
+                    ![rendered, guessed].into_iter().flatten().any(|t| {
+                        let (o, d) = v.ray(p as u32);
+                        seen_elsewhere(i, o + d * t, &views[..observers], &holes, renders)
+                    })
                 })
                 .collect()
         })
@@ -206,22 +218,39 @@ pub fn find_unseen(views: &[View], renders: &[Rendered], observers: usize) -> Ho
     Holes { unseen, stats }
 }
 
-/// Whether the surface point behind hole pixel `p` of view `i` is observed by another of the
-/// `observers` (the first views of `views`).
+/// The depth behind a view's hole as its surroundings continue it: the rendered disparity outside
+/// the hole, harmonically inpainted across it (exact for a plane, such as the ground an object
+/// stands on; 0 where nothing around it is opaque). A candidate surface beside the render's own
+/// depth, which inside the removed volume is whatever grew back (on the demo ring a rim of
+/// seen ground around each hole rendered too shallow or too faint and was taken for unseen:
+/// 2-3x the pixels no view saw).
+fn depth_across_hole(v: &View, hole: &[bool], r: &Rendered) -> Vec<f32> {
+    let (w, h) = (v.width as usize, v.height as usize);
+    let known: Vec<bool> = (0..w * h)
+        .map(|p| !hole[p] && r.alpha[p] >= MIN_SURFACE_ALPHA && r.depth[p] > 0.0)
+        .collect();
+    let mut disparity: Vec<f32> = (0..w * h)
+        .map(|p| if known[p] { 1.0 / r.depth[p] } else { 0.0 })
+        .collect();
+    if !inpaint_harmonic(&mut disparity, &known, w, h, 1) {
+        return vec![0.0; w * h];
+    }
+    disparity
+        .iter()
+        .map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 })
+        .collect()
+}
+
+/// Whether surface point `x` (behind a hole pixel of view `i`) is observed by another of the
+/// `observers` (the first views): it projects outside that view's hole, onto a surface at its
+/// distance (nothing nearer stands in the way).
 fn seen_elsewhere(
     i: usize,
-    p: u32,
+    x: Vec3,
     observers: &[View],
-    views: &[View],
     holes: &[Vec<bool>],
     renders: &[Rendered],
 ) -> bool {
-    let r = &renders[i];
-    if r.alpha[p as usize] < MIN_SURFACE_ALPHA {
-        return false;
-    }
-    let (o, d) = views[i].ray(p);
-    let x = o + d * r.depth[p as usize];
     observers.iter().enumerate().any(|(j, vj)| {
         if j == i {
             return false;
@@ -244,18 +273,21 @@ fn seen_elsewhere(
 /// Give every unseen pixel of `views` a target: colour and disparity inpainted from the pixels
 /// around it (the view's own pixels outside its hole, the field's render in the seen part of the
 /// hole), so training may go on with them (their loss mask set, a depth target added). Returns
-/// how many pixels got a target.
-pub fn fill_unseen(views: &mut [View], holes: &Holes, renders: &[Rendered]) -> usize {
+/// the pixels that got a target, as (view, pixel).
+pub fn fill_unseen(views: &mut [View], holes: &Holes, renders: &[Rendered]) -> Vec<(u32, u32)> {
     views
         .par_iter_mut()
         .zip(holes.unseen.par_iter().zip(renders.par_iter()))
-        .map(|(v, (unseen, r))| {
-            if !unseen.iter().any(|&u| u) {
-                return 0;
+        .enumerate()
+        .flat_map_iter(|(i, (v, (unseen, r)))| {
+            if unseen.iter().any(|&u| u) {
+                fill_view(v, unseen, r);
             }
-            fill_view(v, unseen, r)
+            (0..unseen.len() as u32)
+                .filter(|&p| unseen[p as usize])
+                .map(move |p| (i as u32, p))
         })
-        .sum()
+        .collect()
 }
 
 /// Relative depth band around a filled pixel's depth target in which [`filled_surface_cells`]
@@ -367,31 +399,34 @@ fn filled_surface_cells(
     cells
 }
 
-fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) -> usize {
+fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) {
     let (w, h) = (v.width as usize, v.height as usize);
     let hole = hole_of(v);
     let mut rgb = vec![0.0f32; w * h * 3];
     let mut disparity = vec![0.0f32; w * h];
     let mut known_depth = vec![false; w * h];
+    let mut known_colour = vec![false; w * h];
     for p in 0..w * h {
-        let c = if hole[p] {
-            r.rgb[p]
+        let (c, known) = if hole[p] {
+            // Rendered over white: a half-grown surface there would tint the fill pale.
+            let a = r.alpha[p];
+            let c = r.rgb[p].map(|x| ((x - (1.0 - a)) / a.max(1e-3)).clamp(0.0, 1.0));
+            (c, !unseen[p] && a >= SOLID_ALPHA)
         } else {
             let px = v.rgba[p];
-            [0, 1, 2].map(|k| px[k] as f32 / 255.0)
+            ([0, 1, 2].map(|k| px[k] as f32 / 255.0), true)
         };
         rgb[3 * p..3 * p + 3].copy_from_slice(&c);
+        known_colour[p] = known;
         if !unseen[p] && r.alpha[p] >= MIN_SURFACE_ALPHA && r.depth[p] > 0.0 {
             disparity[p] = 1.0 / r.depth[p];
             known_depth[p] = true;
         }
     }
-    let known: Vec<bool> = unseen.iter().map(|&u| !u).collect();
-    inpaint_harmonic(&mut rgb, &known, w, h, 3);
+    inpaint_harmonic(&mut rgb, &known_colour, w, h, 3);
     let has_depth = inpaint_harmonic(&mut disparity, &known_depth, w, h, 1);
     let mask = v.loss_mask.get_or_insert_with(|| vec![true; w * h]);
     let depth = v.depth.get_or_insert_with(|| vec![0.0; w * h]);
-    let mut filled = 0;
     for p in (0..w * h).filter(|&p| unseen[p]) {
         let c = [0, 1, 2].map(|k| (rgb[3 * p + k].clamp(0.0, 1.0) * 255.0).round() as u8);
         v.rgba[p] = [c[0], c[1], c[2], 255];
@@ -399,9 +434,7 @@ fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) -> usize {
         if has_depth && disparity[p] > 0.0 {
             depth[p] = 1.0 / disparity[p];
         }
-        filled += 1;
     }
-    filled
 }
 
 #[cfg(test)]

@@ -14,6 +14,10 @@ pub struct RaySet {
     /// Kept rays that carry a depth target (drawn in addition to the colour batch, since sparse
     /// depth pixels are too rare to be hit by uniform sampling).
     pub depth_rays: Vec<(u32, u32)>,
+    /// Rays drawn in addition, [`TrainConfig::focus_batch`](super::train::TrainConfig) a step:
+    /// a removal's filled pixels (ten thousand among millions: drawn uniformly, each would be
+    /// seen a few times before training ends). Empty unless set.
+    pub focus: Vec<(u32, u32)>,
     /// Each view's image width, and where its rays start in `rays` (one past the last view's
     /// end at the back), to find a pixel's neighbours for [`RaySet::draw_runs`].
     widths: Vec<u32>,
@@ -59,6 +63,7 @@ impl RaySet {
             rays,
             total,
             depth_rays,
+            focus: Vec::new(),
             widths: views.iter().map(|v| v.width).collect(),
             view_starts,
         }
@@ -138,6 +143,7 @@ mod tests {
             rays: per.concat(),
             total: 80,
             depth_rays: Vec::new(),
+            focus: Vec::new(),
             widths: vec![10, 10],
             view_starts,
         }

@@ -47,6 +47,8 @@ pub struct TrainConfig {
     /// and how many rays with a depth target are added to each batch.
     pub depth_weight: f32,
     pub depth_batch: usize,
+    /// Rays drawn a step from [`RaySet::focus`] when it holds any.
+    pub focus_batch: usize,
     /// Weight of the distortion loss ([`distortion`], distances in finest voxels) per ray.
     pub distortion_weight: f32,
     /// Weight of the sparsity loss per ray (the sum of its kept samples' alphas,
@@ -95,6 +97,7 @@ impl Default for TrainConfig {
             alpha_weight: 0.1,
             depth_weight: 0.001,
             depth_batch: 1024,
+            focus_batch: 256,
             distortion_weight: 0.0,
             sparsity_weight: 0.0,
             stages: vec![(0.0, 0.5), (0.3, 1.0)],
@@ -871,7 +874,8 @@ fn draw_batch(
     param_bytes: usize,
 ) -> Vec<(u32, u32)> {
     let mut rng = Rng::fork(cfg.seed, step as u64);
-    let mut picks: Vec<(u32, u32)> = Vec::with_capacity(cfg.batch + cfg.depth_batch);
+    let mut picks: Vec<(u32, u32)> =
+        Vec::with_capacity(cfg.batch + cfg.depth_batch + cfg.focus_batch);
     let run = match cfg.ray_run {
         0 if param_bytes > AUTO_RAY_RUN_BYTES => AUTO_RAY_RUN,
         0 => 1,
@@ -881,6 +885,11 @@ fn draw_batch(
     if cfg.depth_weight > 0.0 && !rays.depth_rays.is_empty() {
         for _ in 0..cfg.depth_batch {
             picks.push(rays.depth_rays[rng.below(rays.depth_rays.len())]);
+        }
+    }
+    if !rays.focus.is_empty() {
+        for _ in 0..cfg.focus_batch {
+            picks.push(rays.focus[rng.below(rays.focus.len())]);
         }
     }
     picks.sort_unstable();

@@ -266,10 +266,14 @@ fn train_and_fill(
     if opts.fill {
         let renders = render_all(&fit.trainer.field, &RenderOptions::default(), &fit.views);
         let holes = find_unseen(&fit.views, &renders, fit.views.len());
-        filled = fill_unseen(&mut fit.views, &holes, &renders);
+        let focus = fill_unseen(&mut fit.views, &holes, &renders);
+        filled = focus.len();
         reopened = reopen_filled_surface(&mut fit.trainer, &fit.views, &holes, &renders);
         drop(renders);
         fit.rebuild_rays();
+        // Ten thousand filled pixels among millions: drawn uniformly, each would be seen a few
+        // times before training ends.
+        fit.rays.focus = focus;
     }
     t_hole += t.elapsed().as_secs_f64();
     let rest = StopRule {
