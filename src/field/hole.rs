@@ -9,8 +9,9 @@
 //! [`fill_unseen`] gives those pixels targets, so training can go on with them (and draws them
 //! more often than the rest): colour and disparity inpainted harmonically from what surrounds
 //! the unseen part (a smooth continuation of the ground, never grey fog or floaters), the
-//! disparity as a depth target so the filled surface lies where the surroundings say. [`reopen_filled_surface`] gives the filled pixels
-//! that would render see-through (their cells carved away) cells to grow in.
+//! disparity as a depth target so the filled surface lies where the surroundings say.
+//! [`reopen_filled_surface`] gives the filled pixels that would render see-through (their cells
+//! carved away) cells to grow in.
 
 use super::eval::{render_view, Rendered};
 use super::model::Field;
@@ -223,7 +224,7 @@ pub fn find_unseen(views: &[View], renders: &[Rendered], observers: usize) -> Ho
 /// stands on; 0 where nothing around it is opaque). A candidate surface beside the render's own
 /// depth, which inside the removed volume is whatever grew back (on the demo ring a rim of
 /// seen ground around each hole rendered too shallow or too faint and was taken for unseen:
-/// 2-3x the pixels no view saw).
+/// 7 908 pixels of four views against 6 853 by the truth's geometry; 6 907 with this depth).
 fn depth_across_hole(v: &View, hole: &[bool], r: &Rendered) -> Vec<f32> {
     let (w, h) = (v.width as usize, v.height as usize);
     let known: Vec<bool> = (0..w * h)
@@ -509,6 +510,88 @@ mod tests {
             reopen_filled_surface(&mut trainer, &views, &holes, &rendered(0.0)),
             0
         );
+    }
+
+    /// Two 16x16 views of a wall at z = 0.4 from z = -3, the second shifted sideways by 0.3; the
+    /// first has a hole at pixels x, y 5..11 (the second none). Renders: the wall (red, opaque,
+    /// at its depth) outside the hole; inside it `inside_alpha` over white, at `inside_depth`.
+    fn two_views_of_a_wall(inside_alpha: f32, inside_depth: f32) -> (Vec<View>, Vec<Rendered>) {
+        let cam = Camera::pinhole(16, 16, 20.0, 20.0, 8.0, 8.0);
+        let in_hole = |p: usize| (5..11).contains(&(p % 16)) && (5..11).contains(&(p / 16));
+        let mut views: Vec<View> = [0.0, 0.3]
+            .iter()
+            .map(|&x| {
+                let eye = DVec3::new(x, 0.0, -3.0);
+                let pose = Pose::look_at(eye, DVec3::new(x, 0.0, 0.0), DVec3::Y);
+                View::new("v".into(), cam.clone(), pose, vec![[200, 0, 0, 255]; 256])
+            })
+            .collect();
+        views[0].loss_mask = Some((0..256).map(|p| !in_hole(p)).collect());
+        let renders = views
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let hole = |p: usize| i == 0 && in_hole(p);
+                let a = |p: usize| if hole(p) { inside_alpha } else { 1.0 };
+                Rendered {
+                    width: 16,
+                    height: 16,
+                    rgb: (0..256)
+                        .map(|p| [0.8 * a(p) + 1.0 - a(p), 1.0 - a(p), 1.0 - a(p)])
+                        .collect(),
+                    alpha: (0..256).map(a).collect(),
+                    depth: (0..256u32)
+                        .map(|p| match hole(p as usize) {
+                            true => inside_depth,
+                            false => 3.4 / v.ray(p).1.z,
+                        })
+                        .collect(),
+                }
+            })
+            .collect();
+        (views, renders)
+    }
+
+    #[test]
+    fn ground_the_surroundings_continue_is_seen_though_the_hole_renders_empty() {
+        // Inside the hole the field holds nothing yet (or something at the wrong depth): the
+        // wall the surroundings continue is what the second view sees.
+        for (alpha, depth) in [(0.0, 0.0), (1.0, 1.5)] {
+            let (views, renders) = two_views_of_a_wall(alpha, depth);
+            let holes = find_unseen(&views, &renders, 2);
+            assert_eq!(holes.stats[0].hole_px, 36);
+            assert_eq!(holes.stats[0].unseen_px, 0, "alpha {alpha}, depth {depth}");
+        }
+        // Seen by no one: the second view has a hole there too.
+        let (mut views, renders) = two_views_of_a_wall(0.0, 0.0);
+        views[1].loss_mask = Some(vec![false; 256]);
+        assert_eq!(find_unseen(&views, &renders, 2).stats[0].unseen_px, 36);
+    }
+
+    #[test]
+    fn the_fill_takes_its_colour_from_opaque_renders_only() {
+        // The hole's right half was seen but renders half-grown (alpha 0.5 over white: pink);
+        // its left half is unseen. The fill continues the red photo around it, not the pink.
+        let (mut views, renders) = two_views_of_a_wall(0.5, 0.0);
+        let hole: Vec<bool> = views[0]
+            .loss_mask
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|&k| !k)
+            .collect();
+        let unseen: Vec<bool> = (0..256).map(|p| hole[p] && p % 16 < 8).collect();
+        let holes = Holes {
+            unseen: vec![unseen, Vec::new()],
+            stats: Vec::new(),
+        };
+        let filled = fill_unseen(&mut views, &holes, &renders);
+        assert_eq!(filled.len(), 18);
+        for &(v, p) in &filled {
+            assert_eq!(v, 0);
+            assert_eq!(views[0].rgba[p as usize], [200, 0, 0, 255]);
+            assert!(views[0].loss_mask.as_ref().unwrap()[p as usize]);
+        }
     }
 
     #[test]
