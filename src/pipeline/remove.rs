@@ -271,8 +271,7 @@ fn train_and_fill(
         reopened = reopen_filled_surface(&mut fit.trainer, &fit.views, &holes, &renders);
         drop(renders);
         fit.rebuild_rays();
-        // Ten thousand filled pixels among millions: drawn uniformly, each would be seen a few
-        // times before training ends.
+        // Drawn besides the batch: uniformly, each would be drawn a few times.
         fit.rays.focus = focus;
     }
     t_hole += t.elapsed().as_secs_f64();
