@@ -187,10 +187,11 @@ pub fn find_unseen(views: &[View], renders: &[Rendered], observers: usize) -> Ho
                     let r = &renders[i];
                     let rendered = (r.alpha[p] >= MIN_SURFACE_ALPHA).then_some(r.depth[p]);
                     let guessed = (guess[p] > 0.0).then_some(guess[p]);
-                    ![rendered, guessed].into_iter().flatten().any(|t| {
-                        let (o, d) = v.ray(p as u32);
-                        seen_elsewhere(i, o + d * t, &views[..observers], &holes, renders)
-                    })
+                    let (o, d) = v.ray(p as u32);
+                    ![rendered, guessed]
+                        .into_iter()
+                        .flatten()
+                        .any(|t| seen_elsewhere(i, o + d * t, &views[..observers], &holes, renders))
                 })
                 .collect()
         })

@@ -51,8 +51,7 @@ impl Default for StereoOptions {
 const RADIUS: usize = 2;
 
 /// Set depth targets from plane-sweep stereo on every pixel of `views` (the scene's images in
-/// order) that carries a loss and has no target yet. Returns the
-/// number of targets added.
+/// order) that carries a loss and has no target yet. Returns the number of targets added.
 pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions) -> usize {
     if views.len() != scene.images.len() {
         return 0;
