@@ -1,6 +1,6 @@
 //! Object removal on the demo scene: PSNR inside the removed mug's true mask (grown by 4 px) and
 //! over the whole frame, on the held-out views (every 6th), against training time, for the
-//! scene field with and without the fill of the never-seen hole, beside the per-view 2D
+//! scene field with each fill of the never-seen hole (pattern, smooth, none), beside the per-view 2D
 //! inpainting baseline (OpenCV's Telea, `examples/removal_telea.py`, in its own venv). Each
 //! removal is its own `objnerf remove` process, so each report has its own peak RSS. Writes
 //! `OUT/removal_bench.json` and `OUT/removal_bench.svg`.
@@ -69,7 +69,7 @@ fn main() {
         .collect();
     let mut runs = Vec::new();
     for &s in &steps {
-        for fill in [true, false] {
+        for fill in ["pattern", "smooth", "none"] {
             let dir = tmp.path().join(format!("rm_{s}_{fill}"));
             let mut a: Vec<String> = ["remove", &scene.display().to_string(), "--segment"]
                 .map(String::from)
@@ -92,9 +92,7 @@ fn main() {
                 "--out".to_string(),
                 dir.display().to_string(),
             ]);
-            if !fill {
-                a.push("--no-fill".into());
-            }
+            a.extend(["--fill".into(), fill.into()]);
             let t = std::time::Instant::now();
             run_ok(&a);
             let wall = t.elapsed().as_secs_f64();
@@ -109,6 +107,7 @@ fn main() {
                 "psnr": r["scores"]["psnr"],
                 "hole_psnr": r["scores"]["hole_psnr"][0][1],
                 "filled_px": r["filled_px"],
+                "patterned_px": r["patterned_px"],
                 "unseen_fraction": unseen_fraction(&r),
                 "peak_rss_mib": r["peak_rss_mib"],
                 "load_average": bench::machine().load_average,
@@ -224,10 +223,10 @@ fn telea(scene: &Path, segment: &Path, views: &[String], downscale: &str) -> Val
 fn chart(result: &Value, path: &Path) -> ChartResult<()> {
     let runs = result["runs"].as_array().cloned().unwrap_or_default();
     let name = |r: &Value| {
-        if r["fill"] == true {
-            "scene field, hole filled"
-        } else {
-            "scene field, no fill"
+        match r["fill"].as_str() {
+            Some("pattern") => "scene field, pattern fill",
+            Some("smooth") => "scene field, smooth fill",
+            _ => "scene field, no fill",
         }
         .to_string()
     };

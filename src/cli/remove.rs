@@ -2,6 +2,7 @@
 
 use super::progress::Bars;
 use clap::Args;
+use objnerf::field::hole::HoleFill;
 use objnerf::field::{FitOptions, SceneFitOptions, SetupConfig, SpaceChoice};
 use objnerf::pipeline::{remove, RemoveOptions};
 use objnerf::{Result, Scene};
@@ -41,9 +42,10 @@ pub struct RemoveCmd {
     /// Leave every N-th view out of training and score it (0: none).
     #[arg(long, default_value_t = RemoveOptions::default().hold_out_every)]
     hold_out_every: usize,
-    /// Leave the part of the hole no view saw unfilled.
-    #[arg(long)]
-    no_fill: bool,
+    /// How the part of the hole no view saw is filled: pattern (the repeating pattern around it
+    /// continued where there is one, smooth elsewhere), smooth (harmonic) or none.
+    #[arg(long, default_value_t = HoleFill::default())]
+    fill: HoleFill,
     #[arg(long, default_value_t = FitOptions::default().seed)]
     seed: u64,
     /// Replace the output folder if it exists.
@@ -67,7 +69,7 @@ impl RemoveCmd {
             objects: self.objects,
             field,
             hold_out_every: self.hold_out_every,
-            fill: !self.no_fill,
+            fill: self.fill,
             overwrite: self.overwrite,
             ..defaults
         };
@@ -86,8 +88,8 @@ impl RemoveCmd {
         }
         let run = &r.train.run;
         println!(
-            "trained {} steps in {:.0} s (stopped by {}), batch PSNR {:.2} dB; {} hole pixels filled, {} cells occupied again under them",
-            run.steps, r.seconds.train, run.stopped_by, run.final_psnr, r.filled_px, r.reopened_cells
+            "trained {} steps in {:.0} s (stopped by {}), batch PSNR {:.2} dB; {} hole pixels filled ({} continuing a pattern), {} cells occupied again under them",
+            run.steps, r.seconds.train, run.stopped_by, run.final_psnr, r.filled_px, r.patterned_px, r.reopened_cells
         );
         let (hole, unseen) = r
             .holes

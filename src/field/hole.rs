@@ -9,15 +9,19 @@
 //! [`fill_unseen`] gives those pixels targets, so training can go on with them (and draws them
 //! more often than the rest): colour and disparity inpainted harmonically from what surrounds
 //! the unseen part (a smooth continuation of the ground, never grey fog or floaters), the
-//! disparity as a depth target so the filled surface lies where the surroundings say.
+//! disparity as a depth target so the filled surface lies where the surroundings say; where the
+//! surroundings are a plane with a repeating pattern, the colour continues the pattern
+//! ([`super::pattern`]).
 //! [`reopen_filled_surface`] gives the filled pixels that would render see-through (their cells
 //! carved away) cells to grow in.
 
 use super::eval::{render_view, Rendered};
 use super::model::Field;
+use super::pattern::continue_pattern;
 use super::render::RenderOptions;
 use super::train::Trainer;
 use super::view::View;
+use crate::util::choice::named_choices;
 use crate::util::inpaint::inpaint_harmonic;
 use crate::util::{Stage, Warning};
 use glam::Vec3;
@@ -274,20 +278,58 @@ fn seen_elsewhere(
 /// around its hole, disparity from those and the field's render in the seen part of the hole,
 /// so training may go on with them (their loss mask set, a depth target added). Returns
 /// the pixels that got a target, as (view, pixel).
-pub fn fill_unseen(views: &mut [View], holes: &Holes, renders: &[Rendered]) -> Vec<(u32, u32)> {
-    views
+pub fn fill_unseen(
+    views: &mut [View],
+    holes: &Holes,
+    renders: &[Rendered],
+    how: HoleFill,
+) -> FilledPixels {
+    let per_view: Vec<(Vec<(u32, u32)>, usize)> = views
         .par_iter_mut()
         .zip(holes.unseen.par_iter().zip(renders.par_iter()))
         .enumerate()
-        .flat_map_iter(|(i, (v, (unseen, r)))| {
-            if unseen.iter().any(|&u| u) {
-                fill_view(v, unseen, r);
+        .map(|(i, (v, (unseen, r)))| {
+            if how == HoleFill::None || !unseen.iter().any(|&u| u) {
+                return (Vec::new(), 0);
             }
-            (0..unseen.len() as u32)
+            let patterned = fill_view(v, unseen, r, how);
+            let pixels = (0..unseen.len() as u32)
                 .filter(|&p| unseen[p as usize])
-                .map(move |p| (i as u32, p))
+                .map(|p| (i as u32, p))
+                .collect();
+            (pixels, patterned)
         })
-        .collect()
+        .collect();
+    FilledPixels {
+        patterned: per_view.iter().map(|(_, n)| n).sum(),
+        pixels: per_view.into_iter().flat_map(|(p, _)| p).collect(),
+    }
+}
+
+/// How the part of a hole no view saw is filled.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HoleFill {
+    /// Left without a loss: whatever the field grows there.
+    None,
+    /// Harmonic: the smooth continuation of the photo around the hole.
+    Smooth,
+    /// The repeating pattern around the hole continued where it has one ([`super::pattern`]),
+    /// harmonic elsewhere.
+    #[default]
+    Pattern,
+}
+
+named_choices!(HoleFill, "fill", {
+    None => "none",
+    Smooth => "smooth",
+    Pattern => "pattern",
+});
+
+/// The pixels [`fill_unseen`] gave targets, as (view, pixel), and how many of them continue a
+/// pattern.
+pub struct FilledPixels {
+    pub pixels: Vec<(u32, u32)>,
+    pub patterned: usize,
 }
 
 /// Relative depth band around a filled pixel's depth target in which [`filled_surface_cells`]
@@ -399,7 +441,8 @@ fn filled_surface_cells(
     cells
 }
 
-fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) {
+/// Returns the pixels whose colour continues a pattern.
+fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered, how: HoleFill) -> usize {
     let (w, h) = (v.width as usize, v.height as usize);
     let hole = hole_of(v);
     let mut rgb = vec![0.0f32; w * h * 3];
@@ -421,6 +464,11 @@ fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) {
     // with the photo alone +7 / +6 / +3 (inside the unseen part 17.6 -> 18.5 dB).
     let known_colour: Vec<bool> = hole.iter().map(|&h| !h).collect();
     inpaint_harmonic(&mut rgb, &known_colour, w, h, 3);
+    let patterned = if how == HoleFill::Pattern {
+        continue_pattern(v, &hole, unseen, r, &mut rgb)
+    } else {
+        0
+    };
     let has_depth = inpaint_harmonic(&mut disparity, &known_depth, w, h, 1);
     let mask = v.loss_mask.get_or_insert_with(|| vec![true; w * h]);
     let depth = v.depth.get_or_insert_with(|| vec![0.0; w * h]);
@@ -432,6 +480,7 @@ fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered) {
             depth[p] = 1.0 / disparity[p];
         }
     }
+    patterned
 }
 
 #[cfg(test)]
@@ -581,7 +630,7 @@ mod tests {
             unseen: vec![unseen, Vec::new()],
             stats: Vec::new(),
         };
-        let filled = fill_unseen(&mut views, &holes, &renders);
+        let filled = fill_unseen(&mut views, &holes, &renders, HoleFill::Smooth).pixels;
         assert_eq!(filled.len(), 18);
         for &(v, p) in &filled {
             assert_eq!(v, 0);

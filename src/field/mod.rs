@@ -74,6 +74,7 @@ pub mod hole;
 pub mod io;
 pub mod layout;
 pub mod model;
+pub mod pattern;
 pub mod rays;
 pub mod render;
 pub mod scene_checks;

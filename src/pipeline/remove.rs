@@ -19,7 +19,7 @@ use crate::field::eval::{psnr, Rendered};
 use crate::field::holdout::is_held_out;
 use crate::field::hole::{
     clear_removed_volume, fill_unseen, find_unseen, render_all, reopen_filled_surface,
-    see_through_check, ViewHole,
+    see_through_check, HoleFill, ViewHole,
 };
 use crate::field::scene_checks::{check_scene_fit, measure_scene_fit};
 use crate::field::session::StopRule;
@@ -45,7 +45,7 @@ pub struct RemoveOptions {
     /// Hold out every n-th view from training, for scoring ([`is_held_out`]; 0: none).
     pub hold_out_every: usize,
     /// Fill the part of the hole no view saw (see the module notes).
-    pub fill: bool,
+    pub fill: HoleFill,
     /// Fraction of the steps (and of the time budget) trained before the removed volume is
     /// emptied and the hole filled.
     pub fill_after: f32,
@@ -60,7 +60,7 @@ impl Default for RemoveOptions {
             objects: Vec::new(),
             field,
             hold_out_every: 0,
-            fill: true,
+            fill: HoleFill::default(),
             fill_after: 0.8,
             overwrite: false,
         }
@@ -95,6 +95,9 @@ pub struct RemoveReport {
     pub train: TrainReport,
     /// Pixels given fill targets (0 without the fill).
     pub filled_px: usize,
+    /// Of those, the pixels whose colour continues a repeating pattern around the hole
+    /// ([`crate::field::pattern`]); the rest are filled smooth.
+    pub patterned_px: usize,
     /// Cells occupied again where the filled pixels' surface lies
     /// ([`crate::field::hole::reopen_filled_surface`]; carving may have released them).
     pub reopened_cells: usize,
@@ -152,7 +155,7 @@ pub fn remove(
     let mut fit = SceneFit::new(scene, &field_opts)?;
     let t_load = t0.elapsed().as_secs_f64();
 
-    let (filled_px, reopened_cells, t_hole) = train_and_fill(&mut fit, &field_opts, opts, progress);
+    let fill = train_and_fill(&mut fit, &field_opts, opts, progress);
     let t_train = fit.seconds();
     let mut fitted = fit.finish();
     let notes = model_notes(FieldKind::Scene, scene, &field_opts.fit, &fitted.report);
@@ -200,14 +203,15 @@ pub fn remove(
         out: out.to_path_buf(),
         held_out,
         train: fitted.report,
-        filled_px,
-        reopened_cells,
+        filled_px: fill.filled_px,
+        patterned_px: fill.patterned_px,
+        reopened_cells: fill.reopened_cells,
         holes,
         scores,
         seconds: RemoveSeconds {
             load: t_load,
             train: t_train,
-            hole: t_hole,
+            hole: fill.seconds,
             render: t_render,
             total: t0.elapsed().as_secs_f64(),
         },
@@ -237,7 +241,7 @@ fn train_and_fill(
     field_opts: &SceneFitOptions,
     opts: &RemoveOptions,
     progress: &dyn Progress,
-) -> (usize, usize, f64) {
+) -> HoleWork {
     let budget = field_opts.fit.time_budget;
     let steps = field_opts.fit.steps;
     progress.begin("train background", steps as u64);
@@ -262,12 +266,14 @@ fn train_and_fill(
     let regrow = phase(fill_at, fit.seconds());
     fit.train(&regrow, &mut report);
     let t = Instant::now();
-    let (mut filled, mut reopened) = (0, 0);
-    if opts.fill {
+    let (mut filled, mut patterned, mut reopened) = (0, 0, 0);
+    if opts.fill != HoleFill::None {
         let renders = render_all(&fit.trainer.field, &RenderOptions::default(), &fit.views);
         let holes = find_unseen(&fit.views, &renders, fit.views.len());
-        let focus = fill_unseen(&mut fit.views, &holes, &renders);
+        let fill = fill_unseen(&mut fit.views, &holes, &renders, opts.fill);
+        let focus = fill.pixels;
         filled = focus.len();
+        patterned = fill.patterned;
         reopened = reopen_filled_surface(&mut fit.trainer, &fit.views, &holes, &renders);
         drop(renders);
         fit.rebuild_rays();
@@ -284,7 +290,20 @@ fn train_and_fill(
     };
     fit.train(&rest, &mut report);
     progress.end();
-    (filled, reopened, t_hole)
+    HoleWork {
+        filled_px: filled,
+        patterned_px: patterned,
+        reopened_cells: reopened,
+        seconds: t_hole,
+    }
+}
+
+/// What [`train_and_fill`] did to the hole.
+struct HoleWork {
+    filled_px: usize,
+    patterned_px: usize,
+    reopened_cells: usize,
+    seconds: f64,
 }
 
 /// The segment run must be of this scene: the same image names.

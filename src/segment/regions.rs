@@ -8,8 +8,7 @@
 //! parts, since each is large or prompted. Tiny holes are decoder speckle (fox's close-ups show a
 //! checkerboard of them), not structure; a mug handle's hole is thousands of pixels.
 
-use crate::util::lattice::face_neighbours;
-use crate::util::mask::is_object;
+use crate::util::mask::{components, is_object, NO_COMPONENT as NONE};
 use glam::DVec2;
 use image::GrayImage;
 
@@ -38,7 +37,7 @@ pub fn clean_mask(mask: &mut GrayImage, positives: &[DVec2], opts: &CleanOptions
     let mut changed = 0;
     // Islands.
     let on: Vec<bool> = mask.pixels().map(|p| is_object(p[0])).collect();
-    let (labels, sizes) = label(&on, w, h);
+    let (labels, sizes) = components(&on, w, h);
     if sizes.len() > 1 {
         let largest = sizes.iter().copied().max().unwrap_or(0);
         let mut keep: Vec<bool> = sizes
@@ -64,7 +63,7 @@ pub fn clean_mask(mask: &mut GrayImage, positives: &[DVec2], opts: &CleanOptions
     }
     // Holes: background islands that do not touch the border.
     let off: Vec<bool> = mask.pixels().map(|p| !is_object(p[0])).collect();
-    let (labels, sizes) = label(&off, w, h);
+    let (labels, sizes) = components(&off, w, h);
     let mut border = vec![false; sizes.len()];
     for x in 0..w {
         for y in [0, h - 1] {
@@ -89,36 +88,6 @@ pub fn clean_mask(mask: &mut GrayImage, positives: &[DVec2], opts: &CleanOptions
         }
     }
     changed
-}
-
-const NONE: u32 = u32::MAX;
-
-/// 4-connected components of the `true` pixels: a label per pixel (NONE where false) and each
-/// label's size.
-fn label(on: &[bool], w: usize, h: usize) -> (Vec<u32>, Vec<usize>) {
-    let mut labels = vec![NONE; on.len()];
-    let mut sizes = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..on.len() {
-        if !on[start] || labels[start] != NONE {
-            continue;
-        }
-        let l = sizes.len() as u32;
-        let mut size = 0;
-        labels[start] = l;
-        stack.push(start);
-        while let Some(i) = stack.pop() {
-            size += 1;
-            face_neighbours(i, [w, h, 1], |j| {
-                if on[j] && labels[j] == NONE {
-                    labels[j] = l;
-                    stack.push(j);
-                }
-            });
-        }
-        sizes.push(size);
-    }
-    (labels, sizes)
 }
 
 #[cfg(test)]

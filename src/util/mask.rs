@@ -1,6 +1,7 @@
 //! Binary masks stored as 8-bit images: the one threshold that says which pixels are the object,
 //! and the overlap measures every stage scores masks with.
 
+use crate::util::lattice::face_neighbours;
 use image::GrayImage;
 
 /// A mask pixel above this is the object. Masks objnerf writes are 0/255; soft masks and alpha
@@ -55,6 +56,37 @@ pub fn coverage(a: &GrayImage, b: &GrayImage) -> f64 {
 /// Pixels that are the object.
 pub fn area(m: &GrayImage) -> usize {
     m.pixels().filter(|p| is_object(p[0])).count()
+}
+
+/// The label [`components`] gives pixels that are off.
+pub const NO_COMPONENT: u32 = u32::MAX;
+
+/// 4-connected components of the `true` pixels of a row-major `w` x `h` image: a label per pixel
+/// ([`NO_COMPONENT`] where false) and each label's size.
+pub fn components(on: &[bool], w: usize, h: usize) -> (Vec<u32>, Vec<usize>) {
+    let mut labels = vec![NO_COMPONENT; on.len()];
+    let mut sizes = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..on.len() {
+        if !on[start] || labels[start] != NO_COMPONENT {
+            continue;
+        }
+        let l = sizes.len() as u32;
+        let mut size = 0;
+        labels[start] = l;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            size += 1;
+            face_neighbours(i, [w, h, 1], |j| {
+                if on[j] && labels[j] == NO_COMPONENT {
+                    labels[j] = l;
+                    stack.push(j);
+                }
+            });
+        }
+        sizes.push(size);
+    }
+    (labels, sizes)
 }
 
 /// The mask grown by `radius` pixels (a square neighbourhood; separable max filter), as 0/255.
