@@ -212,7 +212,11 @@ pub struct SceneFitOptions {
     /// Masks of the objects to remove, one per scene image (None: nothing to remove there).
     pub removed: Option<Arc<Vec<Option<GrayImage>>>>,
     /// Grow the removed masks by this many pixels (full resolution): SAM's tight edges would
-    /// otherwise leave a rim of the object in the background.
+    /// otherwise leave a rim of the object in the background. Every pixel grown is one more no
+    /// view may see: on the demo ring SAM's masks grown by 2 px hold all but 2 of the torus's
+    /// 51 265 true pixels (36 views) and 183 of the mug's 54 785 (by 3 px all), and removing
+    /// both (6 000 steps) scored inside their true masks (+4 px) mug / torus 24.22 / 19.68 dB
+    /// at 4 px, 24.96 / 20.27 at 3, 24.70 / 21.22 at 2, 24.33 / 21.61 at 1 (a rim of the mug).
     pub dilate_px: u32,
     /// Fraction of the schedule before empty space is pruned (see [`TrainConfig::prune_after`]).
     pub prune_after: f32,
@@ -248,7 +252,7 @@ impl Default for SceneFitOptions {
                 ..FitOptions::default()
             },
             removed: None,
-            dilate_px: 4,
+            dilate_px: 2,
             prune_after: 0.1,
             carve_weight: 1e-3,
             exclude_points: Default::default(),
