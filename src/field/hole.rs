@@ -441,7 +441,7 @@ fn filled_surface_cells(
     cells
 }
 
-/// Returns the pixels whose colour continues a pattern.
+/// Returns how many pixels' colour continues a pattern.
 fn fill_view(v: &mut View, unseen: &[bool], r: &Rendered, how: HoleFill) -> usize {
     let (w, h) = (v.width as usize, v.height as usize);
     let hole = hole_of(v);

@@ -95,6 +95,7 @@ pub fn continue_pattern(
         .iter()
         .map(|p| [0, 1, 2].map(|k| p[k] as f32 / 255.0))
         .collect();
+    let brightness = v.luma();
     let (labels, _) = components(hole, w, h);
     let mut todo: Vec<u32> = (0..w * h)
         .filter(|&p| unseen[p] && labels[p] != NO_COMPONENT)
@@ -112,7 +113,7 @@ pub fn continue_pattern(
         let Some((centre, radius)) = extent(v, &part, &plane) else {
             continue;
         };
-        let symmetries = find_symmetries(v, &photo, &on_plane, &plane, centre, radius);
+        let symmetries = find_symmetries(v, &brightness, &on_plane, &plane, centre, radius);
         if symmetries.is_empty() {
             continue;
         }
@@ -272,7 +273,7 @@ fn extent(v: &View, part: &[bool], plane: &Plane) -> Option<(Vec2, f32)> {
 /// splatted into a texture in plane coordinates around the hole.
 fn find_symmetries(
     v: &View,
-    photo: &[[f32; 3]],
+    brightness: &[f32],
     on_plane: &[bool],
     plane: &Plane,
     centre: Vec2,
@@ -291,8 +292,7 @@ fn find_symmetries(
             continue;
         }
         let i = q.y as usize * n + q.x as usize;
-        let [cr, cg, cb] = photo[p];
-        sum[i] += (0.299 * cr + 0.587 * cg + 0.114 * cb) as f64;
+        sum[i] += brightness[p] as f64;
         count[i] += 1;
     }
     let texture: Vec<Option<f64>> = sum
@@ -304,10 +304,12 @@ fn find_symmetries(
     let sigma = 0.5 * SEARCH_RADII * radius;
     periodic_shifts(&texture, n, reach)
         .into_iter()
-        .map(|(shift, c)| (shift * texel, c))
-        .map(|(shift, c)| Symmetry {
-            shift,
-            weight: (c * c) as f32 * (-shift.length_squared() / (2.0 * sigma * sigma)).exp(),
+        .map(|(shift, c)| {
+            let shift = shift * texel;
+            Symmetry {
+                shift,
+                weight: (c * c) as f32 * (-shift.length_squared() / (2.0 * sigma * sigma)).exp(),
+            }
         })
         .collect()
 }

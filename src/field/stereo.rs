@@ -56,7 +56,7 @@ pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions)
     if views.len() != scene.images.len() {
         return 0;
     }
-    let grey: Vec<Vec<f32>> = views.par_iter().map(luma).collect();
+    let grey: Vec<Vec<f32>> = views.par_iter().map(View::luma).collect();
     let ranges: Vec<Option<(f32, f32)>> = (0..views.len())
         .map(|i| depth_range(scene, i, opts.range_margin))
         .collect();
@@ -91,14 +91,6 @@ pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions)
         }
     }
     added
-}
-
-/// Grey levels in 0-1 (colour premultiplied by the mask; a scene field's views are opaque).
-fn luma(v: &View) -> Vec<f32> {
-    v.rgba
-        .iter()
-        .map(|p| (0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32) / 255.0)
-        .collect()
 }
 
 /// The z-depths of the sparse points that view `i` tracks (2nd-98th percentiles), widened.

@@ -222,6 +222,15 @@ pub struct View {
 }
 
 impl View {
+    /// Grey levels in 0-1, row-major (colour premultiplied by the mask; a scene field's views are
+    /// opaque).
+    pub fn luma(&self) -> Vec<f32> {
+        self.rgba
+            .iter()
+            .map(|p| (0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32) / 255.0)
+            .collect()
+    }
+
     pub fn new(name: String, camera: Camera, pose: Pose, rgba: Vec<[u8; 4]>) -> View {
         View {
             cam: RayCamera::new(name, camera, pose),
