@@ -55,70 +55,11 @@ pub struct Holes {
 }
 
 /// A view's hole: the pixels that carry no loss.
-fn hole_of(v: &View) -> Vec<bool> {
+pub(super) fn hole_of(v: &View) -> Vec<bool> {
     match &v.loss_mask {
         Some(m) => m.iter().map(|&k| !k).collect(),
         None => vec![false; (v.width * v.height) as usize],
     }
-}
-
-/// A cell lies in the removed objects' volume when at least this fraction of the views that see
-/// its centre see it inside their hole (voting, as the object field's visual hull).
-pub const REMOVED_HULL_VOTE: f32 = 0.8;
-
-/// What a cleared cell's density logit (`raw + shift`) is set to: -4.6, a new cell's (alpha_init
-/// = 1% a voxel), and its colour to grey (SH 0). Cleared cells are trained afresh: those other
-/// views saw outside their holes are carved or raised again by their rays, the never-seen
-/// ground under the object by the fill's targets. Lower values starve them: at -30 (the first
-/// version) the ground under a removed object rendered as a white hole in every view; at -8 the
-/// seen ground came back but 11% of the demo's hole pixels stayed see-through (the gradient,
-/// sigmoid(-8) times a tiny sample weight, fell below Adam's epsilon), and the object's old
-/// colours tinted the fill. At -4.6 with grey (the demo edits' background, scored on all 36
-/// views): no see-through pixels, full frame 24.57 -> 25.75 dB, inside the mug/torus masks 16.3/14.0 -> 18.7/17.0 dB.
-pub const CLEARED_LOGIT: f32 = -4.6;
-
-/// Empty the removed objects' volume: the cells whose centre projects into the hole of at least
-/// [`REMOVED_HULL_VOTE`] of the views that see it (two at least) start afresh (density at
-/// [`CLEARED_LOGIT`], grey). Few rays with a loss cross that volume, so it would keep whatever it
-/// held (a remnant of the object); what lies behind it stays, and the fill's targets raise the
-/// ground there again (the cells stay occupied). Returns the cells emptied.
-pub fn clear_removed_volume(field: &mut Field, views: &[View]) -> usize {
-    let holes: Vec<Vec<bool>> = views.iter().map(hole_of).collect();
-    let cells = field.occupied_cell_list();
-    let space = field.space.clone();
-    let inside: Vec<[usize; 3]> = cells
-        .into_par_iter()
-        .filter(|&c| {
-            let Some(p) = space.unmap(field.cell_center(c)) else {
-                return false;
-            };
-            let (mut seen, mut hole) = (0usize, 0usize);
-            for (v, h) in views.iter().zip(&holes) {
-                let Some((u, w)) = v.project(p) else { continue };
-                if u < 0.0 || w < 0.0 || u >= v.width as f32 || w >= v.height as f32 {
-                    continue;
-                }
-                seen += 1;
-                hole += h[(w as u32 * v.width + u as u32) as usize] as usize;
-            }
-            seen >= 2 && hole as f32 >= REMOVED_HULL_VOTE * seen as f32
-        })
-        .collect();
-    let empty = CLEARED_LOGIT - field.shift();
-    let ch = field.grid.channels;
-    for c in &inside {
-        for i in 0..8 {
-            let v = field
-                .grid
-                .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
-            if v != super::grid::NONE {
-                let v = v as usize * ch;
-                field.grid.data[v] = empty;
-                field.grid.data[v + 1..v + ch].fill(0.0);
-            }
-        }
-    }
-    inside.len()
 }
 
 /// How much more of a view's hole than of the rest of it may render see-through (opacity below

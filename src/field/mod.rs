@@ -76,6 +76,7 @@ pub mod layout;
 pub mod model;
 pub mod pattern;
 pub mod rays;
+pub mod removed;
 pub mod render;
 pub mod scene_checks;
 pub mod session;

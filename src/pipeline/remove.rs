@@ -18,9 +18,10 @@ use crate::error::{Error, Result};
 use crate::field::eval::{psnr, Rendered};
 use crate::field::holdout::is_held_out;
 use crate::field::hole::{
-    clear_removed_volume, fill_unseen, find_unseen, render_all, reopen_filled_surface,
-    see_through_check, HoleFill, ViewHole,
+    fill_unseen, find_unseen, render_all, reopen_filled_surface, see_through_check, HoleFill,
+    ViewHole,
 };
+use crate::field::removed::{clear_removed_volume, empty_air_in_holes};
 use crate::field::scene_checks::{check_scene_fit, measure_scene_fit};
 use crate::field::session::StopRule;
 use crate::field::{model_notes, FieldKind, RenderOptions, SceneFit, SceneFitOptions, TrainReport};
@@ -101,6 +102,9 @@ pub struct RemoveReport {
     /// Cells occupied again where the filled pixels' surface lies
     /// ([`crate::field::hole::reopen_filled_surface`]; carving may have released them).
     pub reopened_cells: usize,
+    /// Cells of the objects' volume emptied after training: the air in front of the surfaces
+    /// their holes show ([`crate::field::removed::empty_air_in_holes`]).
+    pub air_cells: usize,
     /// Per view (every view of the scene): the hole and the part of it no training view saw.
     pub holes: Vec<ViewHole>,
     pub scores: Option<RemovalScores>,
@@ -206,6 +210,7 @@ pub fn remove(
         filled_px: fill.filled_px,
         patterned_px: fill.patterned_px,
         reopened_cells: fill.reopened_cells,
+        air_cells: fill.air_cells,
         holes,
         scores,
         seconds: RemoveSeconds {
@@ -290,10 +295,19 @@ fn train_and_fill(
     };
     fit.train(&rest, &mut report);
     progress.end();
+    // No ray with a loss crossed the air the objects left; what it kept, emptied.
+    let t = Instant::now();
+    let air_cells = empty_air_in_holes(
+        &mut fit.trainer.field,
+        &RenderOptions::default(),
+        &fit.views,
+    );
+    t_hole += t.elapsed().as_secs_f64();
     HoleWork {
         filled_px: filled,
         patterned_px: patterned,
         reopened_cells: reopened,
+        air_cells,
         seconds: t_hole,
     }
 }
@@ -303,6 +317,7 @@ struct HoleWork {
     filled_px: usize,
     patterned_px: usize,
     reopened_cells: usize,
+    air_cells: usize,
     seconds: f64,
 }
 
