@@ -170,6 +170,14 @@ impl Grid {
         }
     }
 
+    /// The cell whose base vertex has linear index `base` (x fastest over the vertex grid, as
+    /// [`super::render::Sample::base`] records it).
+    #[inline]
+    pub fn cell_of_base(&self, base: usize) -> [usize; 3] {
+        let d = self.dims;
+        [base % d[0], (base / d[0]) % d[1], base / (d[0] * d[1])]
+    }
+
     /// The grid position of a slot index.
     #[inline]
     pub fn vertex_coords(&self, v: u32) -> [usize; 3] {

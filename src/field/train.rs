@@ -472,7 +472,6 @@ impl Trainer {
         let opt = self.cfg.render;
         let thr = self.cfg.carve_weight;
         let dims = f.grid.dims;
-        let plane = dims[0] * dims[1];
         let seen: Vec<Vec<u32>> = rays
             .rays
             .par_chunks(4096)
@@ -506,8 +505,7 @@ impl Trainer {
         let mut keep = vec![false; f.num_cells().max(1)];
         let cells = [dims[0] - 1, dims[1] - 1, dims[2] - 1];
         for b in seen.into_iter().flatten() {
-            let b = b as usize;
-            let (x, y, z) = (b % dims[0], (b / dims[0]) % dims[1], b / plane);
+            let [x, y, z] = f.grid.cell_of_base(b as usize);
             keep[x + cells[0] * (y + cells[1] * z)] = true;
         }
         // A view between the training views crosses a surface where no training ray quite did:
@@ -654,7 +652,6 @@ impl Trainer {
         let mut data = std::mem::take(&mut self.field.grid.data);
         let grid = &self.field.grid;
         let records = &self.records;
-        let plane = grid.dims[0] * grid.dims[1];
         let bounds = &slabs.bounds;
         let touched: Vec<Vec<u32>> = split_by(&mut self.grad, bounds, ch)
             .into_par_iter()
@@ -668,7 +665,6 @@ impl Trainer {
                 let mut list = Vec::new();
                 let slab = SlabScatter {
                     grid,
-                    plane,
                     stride,
                     range: v0..v1,
                     stamp_id,
@@ -766,7 +762,6 @@ impl Trainer {
 /// Sums one slab's share of the records into its gradient, listing the vertices touched.
 struct SlabScatter<'a> {
     grid: &'a Grid,
-    plane: usize,
     stride: usize,
     /// The slab's vertex slots.
     range: std::ops::Range<usize>,
@@ -775,13 +770,7 @@ struct SlabScatter<'a> {
 
 impl SlabScatter<'_> {
     fn corners(&self, r: &[f32]) -> Corners {
-        let base = r[0].to_bits() as usize;
-        let dims = self.grid.dims;
-        let cell = [
-            base % dims[0],
-            (base / dims[0]) % dims[1],
-            base / self.plane,
-        ];
+        let cell = self.grid.cell_of_base(r[0].to_bits() as usize);
         self.grid.corners_of(cell, [r[1], r[2], r[3]])
     }
 
