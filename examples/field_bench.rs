@@ -15,7 +15,7 @@
 //! schedule and grid scale), FIELD_PRUNE (steps between occupancy updates), FIELD_TV
 //! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
 //! FIELD_MEM_MB, FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL,
-//! FIELD_ALPHA_INIT, FIELD_SEED; FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN and FIELD_SPARSE
+//! FIELD_ALPHA_INIT, FIELD_SEED, FIELD_NET ("features,hidden": colour network), FIELD_LR_NET; FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN and FIELD_SPARSE
 //! apply to `demo` too.
 
 #[path = "support/bench.rs"]
@@ -55,6 +55,17 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
     }
 }
 
+/// The colour overrides both benchmarks take: FIELD_NET ("features,hidden"; "0,0": SH colour)
+/// and FIELD_LR_NET.
+fn net_overrides(setup: &mut SetupConfig, cfg: &mut TrainConfig) {
+    if let Some((f, h)) = pair("FIELD_NET") {
+        (setup.net_features, setup.net_hidden) = (f as usize, h as usize);
+    }
+    if let Some(v) = env("FIELD_LR_NET") {
+        cfg.lr_net = v;
+    }
+}
+
 /// `demo SCENE_DIR OBJECT SECONDS [none|dense|sparse]`: one demo object from its true masks,
 /// scored on the held-out views (`demo::holdout::demo_object`).
 fn demo(args: &[String]) -> objnerf::Result<()> {
@@ -74,12 +85,15 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
     if let Some(n) = steps {
         train.steps = n;
     }
+    let mut setup = SetupConfig::default();
+    net_overrides(&mut setup, &mut train);
     let cpu0 = cpu_seconds();
     let r = demo_object(
         &dir,
         object,
         &DemoRun {
             depth,
+            setup,
             train,
             stop: StopRule {
                 time_budget: steps.is_none().then_some(secs),
@@ -137,6 +151,7 @@ fn main() -> objnerf::Result<()> {
         steps,
         ..Default::default()
     };
+    net_overrides(&mut setup, &mut cfg);
     if let Ok(st) = std::env::var("FIELD_STAGES") {
         cfg.stages = st
             .split(',')

@@ -14,6 +14,11 @@
 //! built before the grid became sparse (commit c3b87eb: `git worktree add /tmp/dense c3b87eb &&
 //! cargo build --release --example field_bench` there), the same runs with that dense grid.
 //! Writes `OUT/field_sizes.{json,svg}`; `--sizes --replot` redraws the SVG from that JSON.
+//!
+//! `--colours` compares the colour models within the same wall-clock budgets ([`COLOURS`]):
+//! SH degree 1 (the default), SH degree 2 and a feature grid with a small colour network, on
+//! lego at 200^2 (60 and 300 s) and on the demo objects (3000 steps, held-out PSNR). Writes
+//! `OUT/field_colours.{json,svg}`; `--colours --replot` redraws the SVG.
 
 use objnerf::util::chart::{layers, series, svg, ChartResult, Panel};
 use serde_json::{json, Value};
@@ -38,6 +43,14 @@ const SIZES: &[(&str, u32, f64, f32, bool)] = &[
     ("800^2", 1, 1200.0, 1.0, false),
     ("400^2", 2, 300.0, 0.6, false),
     ("800^2", 1, 1200.0, 0.4, false),
+];
+/// The colour sweep: (label, SH degree, FIELD_NET "features,hidden" or "" for SH colour,
+/// FIELD_VPP, lego budgets in seconds).
+const COLOURS: &[(&str, u32, &str, f32, &[f64])] = &[
+    ("SH 1", 1, "", 1.0, &[60.0, 300.0]),
+    ("SH 2", 2, "", 1.0, &[60.0]),
+    ("net 8x32", 1, "8,32", 1.0, &[60.0, 300.0]),
+    ("net 8x32, 1.3 voxel/px", 1, "8,32", 1.3, &[300.0]),
 ];
 const DEMO_OBJECTS: &[&str] = &["mug", "sphere", "box", "torus"];
 const DEMO_BUDGETS: &[f64] = &[40.0];
@@ -87,6 +100,10 @@ fn main() {
     let quick = args.iter().any(|a| a == "--quick");
     if args.iter().any(|a| a == "--sizes") {
         sizes(&args, &lego, &out_dir, quick);
+        return;
+    }
+    if args.iter().any(|a| a == "--colours") {
+        colours(&args, &lego, &out_dir, quick);
         return;
     }
     let scale = if quick { 0.1 } else { 1.0 };
@@ -332,6 +349,123 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
             "training wall seconds (2 cores)",
             "% of training in gradient scatter + Adam",
             layers(scatter_share),
+        ),
+    ];
+    std::fs::write(path, svg((1500, 480), 1, &panels)?)?;
+    Ok(())
+}
+
+/// The colour sweep (`--colours`): lego at 200^2 for each of [`COLOURS`] within its budgets,
+/// then the demo objects at 3000 steps with each colour model at 1 voxel/px.
+fn colours(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
+    let json_path = out_dir.join("field_colours.json");
+    if args.iter().any(|a| a == "--replot") {
+        let text = std::fs::read_to_string(&json_path).expect("field_colours.json to redraw");
+        let result: Value = serde_json::from_str(&text).expect("field_colours.json is JSON");
+        colours_chart(&result, &out_dir.join("field_colours.svg")).expect("chart");
+        return;
+    }
+    let scale = if quick { 0.05 } else { 1.0 };
+    let env_of = |net: &str, vpp: f32| {
+        let mut env = vec![("FIELD_VPP", vpp.to_string())];
+        if !net.is_empty() {
+            env.push(("FIELD_NET", net.to_string()));
+        }
+        env
+    };
+    let start = std::time::Instant::now();
+    let load_before = loadavg();
+    let mut lego_runs = Vec::new();
+    if lego.exists() {
+        for &(label, degree, net, vpp, budgets) in COLOURS {
+            for &secs in budgets {
+                let run_args = [
+                    lego.display().to_string(),
+                    "4".into(),
+                    (secs * scale).to_string(),
+                    degree.to_string(),
+                ];
+                let mut r = bench(&run_args, &env_of(net, vpp));
+                r["colour"] = json!(label);
+                r["load_average_after"] = json!(loadavg());
+                eprintln!("  {label} {secs} s: PSNR {} dB", r["test_psnr"]);
+                lego_runs.push(r);
+            }
+        }
+    } else {
+        eprintln!("SKIP lego: {} is absent", lego.display());
+    }
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let demo_dir = tmp.path().join("demo");
+    objnerf::demo::write_demo_scene(&Default::default(), &demo_dir).expect("demo scene");
+    let steps = if quick { 300 } else { 3000 };
+    let mut demo_runs = Vec::new();
+    for &(label, _, net, _, _) in COLOURS.iter().filter(|c| c.3 == 1.0 && c.1 == 1) {
+        for obj in DEMO_OBJECTS {
+            let mut env = env_of(net, 1.0);
+            env.push(("FIELD_STEPS", steps.to_string()));
+            let run_args = ["demo", &demo_dir.display().to_string(), obj, "1000", "none"];
+            let mut r = bench(&run_args.map(String::from), &env);
+            r["colour"] = json!(label);
+            eprintln!("  {label} {obj}: PSNR {} dB", r["report"]["psnr"]);
+            demo_runs.push(r);
+        }
+    }
+    let result = json!({
+        "what": "objnerf field colour models: lego 200^2 test PSNR (25 test views on white) within wall-clock budgets, and the demo objects' held-out PSNR at a fixed step count; one process per run",
+        "machine": objnerf::util::machine::machine(),
+        "git_commit": objnerf::util::machine::git_commit(),
+        "command": args.join(" "),
+        "total_s": start.elapsed().as_secs_f64(),
+        "load_average_before": load_before,
+        "lego": lego_runs,
+        "demo": demo_runs,
+    });
+    std::fs::create_dir_all(out_dir).expect("output folder");
+    objnerf::util::atomic::write_bytes_atomic(
+        &json_path,
+        serde_json::to_string_pretty(&result).unwrap().as_bytes(),
+    )
+    .expect("write JSON");
+    colours_chart(&result, &out_dir.join("field_colours.svg")).expect("chart");
+    eprintln!("wrote {} and field_colours.svg", json_path.display());
+}
+
+fn colours_chart(result: &Value, path: &Path) -> ChartResult<()> {
+    let empty = Vec::new();
+    let lego = result["lego"].as_array().unwrap_or(&empty);
+    let demo = result["demo"].as_array().unwrap_or(&empty);
+    let colour = |r: &Value| r["colour"].as_str().unwrap_or("?").to_string();
+    let psnr = series(lego, colour, |r| {
+        Some((r["train"]["seconds"].as_f64()?, r["test_psnr"].as_f64()?))
+    });
+    let rss = series(lego, colour, |r| {
+        Some((r["train"]["seconds"].as_f64()?, r["peak_rss_mib"].as_f64()?))
+    });
+    // x: the object's place in DEMO_OBJECTS (1 mug, 2 sphere, 3 box, 4 torus).
+    let demo_psnr = series(demo, colour, |r| {
+        let obj = r["report"]["object"].as_str()?;
+        let x = DEMO_OBJECTS.iter().position(|o| *o == obj)? as f64 + 1.0;
+        Some((x, r["report"]["psnr"].as_f64()?))
+    });
+    let panels = [
+        Panel::fitted(
+            "lego 200^2: test PSNR vs training time",
+            "training wall seconds (2 cores)",
+            "test PSNR on white (dB)",
+            layers(psnr),
+        ),
+        Panel::fitted(
+            "lego 200^2: peak RSS",
+            "training wall seconds (2 cores)",
+            "peak RSS (MiB)",
+            layers(rss),
+        ),
+        Panel::fitted(
+            "demo objects, 3000 steps: held-out PSNR",
+            "1 mug, 2 sphere, 3 box, 4 torus",
+            "PSNR on white (dB)",
+            layers(demo_psnr),
         ),
     ];
     std::fs::write(path, svg((1500, 480), 1, &panels)?)?;

@@ -328,6 +328,7 @@ fn objf(path: &Path) {
             train: None,
             step: 1,
             adam: Some((&zeros, &zeros, 1)),
+            net_adam: None,
             notes: serde_json::json!({}),
         },
     )

@@ -153,6 +153,7 @@ fn empty_model(path: &Path) {
         train: None,
         step: 0,
         adam: None,
+        net_adam: None,
         notes: serde_json::json!({}),
     };
     model_io::save(path, &model.parts()).unwrap();

@@ -56,6 +56,7 @@ fn tiny_model(path: &Path) {
             train: None,
             step: 0,
             adam: None,
+            net_adam: None,
             notes: serde_json::json!({"kind": "object"}),
         },
     )

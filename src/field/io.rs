@@ -13,12 +13,16 @@
 //!           "grid"      f32, bricks * 64 vertices * channels, vertices x-fastest in their brick,
 //!                       channels per vertex [raw density, SH red (K), SH green (K), SH blue (K)]
 //!           "occupancy" u64 per brick, one bit per cell whose base vertex is in the brick
+//!           "colour_net" f32, the colour network's weights (version 4, when the header's
+//!                       `colour_net` gives its shape; the grid's channels are then [raw
+//!                       density, features]): W1 (inputs x hidden), b1, W2 (3 x hidden), b2
 //!           "adam_m", "adam_v" f32 like "grid" (optional; present for resuming training)
 //! Versions 1 and 2 stored a dense grid (x-fastest over dims) and one occupancy bit per cell.
 //! ```
 //! Every array is checked against its length and hash, and the file must end where the last
 //! array ends, so a truncated or corrupted file is an error that says what is wrong.
 
+use super::colour_net::{ColourNet, MAX_HIDDEN, MAX_INPUTS};
 use super::grid::{Grid, BRICK_VERTICES};
 use super::model::{sh_coeffs, Field, FieldConfig};
 use super::space::Space;
@@ -31,10 +35,11 @@ use sha2::{Digest, Sha256};
 use std::path::Path;
 
 pub const MAGIC: &[u8; 8] = b"OBJNFLD\n";
+/// 4: an optional colour network (the header's `colour_net`, its weights in "colour_net").
 /// 3: sparse bricks ("bricks": the allocated bricks' positions; "grid", "occupancy" and the
 /// optimiser state per brick). 2: a dense grid with the field's [`Space`] in the header. 1: a
 /// dense box-space grid. Versions 1 and 2 still load (as a grid with every brick allocated).
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ArrayInfo {
@@ -57,6 +62,10 @@ pub struct Header {
     pub voxel: f32,
     pub dims: [usize; 3],
     pub channels: usize,
+    /// The colour network's shape (version 4; absent: SH colour), its weights in the
+    /// "colour_net" array.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub colour_net: Option<NetShape>,
     /// Dims of the finest coarse-to-fine stage (training resumes towards it).
     pub final_dims: [usize; 3],
     /// Object-to-world transform (row-major 4x4): where the object sits in its scene.
@@ -64,10 +73,24 @@ pub struct Header {
     pub train: Option<TrainConfig>,
     pub step: usize,
     pub adam_t: u32,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub net_adam_t: u32,
     /// Free-form notes from training (setup report, timings).
     #[serde(default)]
     pub notes: serde_json::Value,
     pub arrays: Vec<ArrayInfo>,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
+}
+
+/// A colour network's shape ([`ColourNet`]).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct NetShape {
+    pub features: usize,
+    pub dir_terms: usize,
+    pub hidden: usize,
 }
 
 /// Everything a model file holds.
@@ -80,6 +103,8 @@ pub struct Model {
     pub step: usize,
     /// Adam m, v and step count, if saved.
     pub adam: Option<(Vec<f32>, Vec<f32>, u32)>,
+    /// The colour network's Adam m, v and step count, if it has one and they were saved.
+    pub net_adam: Option<(Vec<f32>, Vec<f32>, u32)>,
     pub notes: serde_json::Value,
 }
 
@@ -99,6 +124,7 @@ pub struct ModelParts<'a> {
     pub train: Option<&'a TrainConfig>,
     pub step: usize,
     pub adam: Option<(&'a [f32], &'a [f32], u32)>,
+    pub net_adam: Option<(&'a [f32], &'a [f32], u32)>,
     pub notes: serde_json::Value,
 }
 
@@ -111,6 +137,7 @@ impl Model {
             train: self.train.as_ref(),
             step: self.step,
             adam: self.adam.as_ref().map(|(m, v, t)| (&m[..], &v[..], *t)),
+            net_adam: self.net_adam.as_ref().map(|(m, v, t)| (&m[..], &v[..], *t)),
             notes: self.notes.clone(),
         }
     }
@@ -151,6 +178,9 @@ impl Trainer {
         if let Some((am, av, at)) = m.adam {
             t.set_adam_state(am, av, at);
         }
+        if let Some((nm, nv, nt)) = m.net_adam {
+            t.set_net_adam_state(nm, nv, nt);
+        }
         t
     }
 
@@ -164,6 +194,7 @@ impl Trainer {
             train: Some(&self.cfg),
             step: self.step,
             adam: Some(self.adam_state()),
+            net_adam: self.net_adam_state(),
             notes,
         }
     }
@@ -234,9 +265,16 @@ pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
         ("grid", Blob::F32(&f.grid.data)),
         ("occupancy", Blob::U64(&f.occupancy)),
     ];
+    if let Some(net) = &f.net {
+        blobs.push(("colour_net", Blob::F32(&net.weights)));
+    }
     if let Some((am, av, _)) = m.adam {
         blobs.push(("adam_m", Blob::F32(am)));
         blobs.push(("adam_v", Blob::F32(av)));
+    }
+    if let Some((nm, nv, _)) = m.net_adam {
+        blobs.push(("adam_net_m", Blob::F32(nm)));
+        blobs.push(("adam_net_v", Blob::F32(nv)));
     }
     let header = Header {
         format: "objnerf-field".into(),
@@ -248,11 +286,17 @@ pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
         voxel: f.voxel,
         dims: f.grid.dims,
         channels: f.grid.channels,
+        colour_net: f.net.as_ref().map(|n| NetShape {
+            features: n.features,
+            dir_terms: n.dir_terms,
+            hidden: n.hidden,
+        }),
         final_dims: m.final_dims,
         world_transform: m.world_transform,
         train: m.train.cloned(),
         step: m.step,
         adam_t: m.adam.map(|a| a.2).unwrap_or(0),
+        net_adam_t: m.net_adam.map(|a| a.2).unwrap_or(0),
         notes: m.notes.clone(),
         arrays: blobs
             .iter()
@@ -313,6 +357,21 @@ pub fn read_from<R: std::io::Read + std::io::Seek>(
     } else {
         dense_field(&h, &mut arrays).map_err(bad)?
     };
+    let net_len = field.net.as_ref().map_or(0, |n| n.weights.len());
+    let net_adam = match (
+        arrays.f32s.remove("adam_net_m"),
+        arrays.f32s.remove("adam_net_v"),
+    ) {
+        (Some(m), Some(v)) if m.len() == net_len && v.len() == net_len => {
+            Some((m, v, h.net_adam_t))
+        }
+        (None, None) => None,
+        _ => {
+            return Err(bad(
+                "the colour network's optimiser state does not match it".into(),
+            ))
+        }
+    };
     Ok(Model {
         field,
         final_dims: h.final_dims,
@@ -320,6 +379,7 @@ pub fn read_from<R: std::io::Read + std::io::Seek>(
         train: h.train,
         step: h.step,
         adam: adam.map(|(m, v)| (m, v, h.adam_t)),
+        net_adam,
         notes: h.notes,
     })
 }
@@ -376,6 +436,25 @@ fn bricked_field(
     let fill = vec![0.0; h.channels];
     field.grid = Grid::from_parts(h.dims, h.channels, &fill, bricks, data)?;
     field.occupancy = occupancy;
+    if let Some(n) = h.colour_net {
+        let weights = arrays
+            .f32s
+            .remove("colour_net")
+            .ok_or("no 'colour_net' array for the header's colour network")?;
+        let want = ColourNet::weight_count(n.features + n.dir_terms, n.hidden);
+        if weights.len() != want {
+            return Err(format!(
+                "array 'colour_net' holds {} values, the network {n:?} needs {want}",
+                weights.len()
+            ));
+        }
+        field.net = Some(ColourNet {
+            features: n.features,
+            dir_terms: n.dir_terms,
+            hidden: n.hidden,
+            weights,
+        });
+    }
     Ok((field, adam))
 }
 
@@ -439,6 +518,7 @@ fn empty_field(h: &Header) -> Field {
         voxel: h.voxel,
         grid: Grid::with_bricks(h.dims, h.channels, &vec![0.0; h.channels], |_| false),
         occupancy: Vec::new(),
+        net: None,
     }
 }
 
@@ -476,11 +556,27 @@ fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(H
             h.version
         )));
     }
-    if h.config.sh_degree > 2 || h.channels != 1 + 3 * sh_coeffs(h.config.sh_degree) {
+    let colour_channels = match h.colour_net {
+        Some(n) => n.features,
+        None => 3 * sh_coeffs(h.config.sh_degree),
+    };
+    if h.config.sh_degree > 2 || h.channels != 1 + colour_channels {
         return Err(bad(format!(
-            "inconsistent header: {} channels for SH degree {}",
-            h.channels, h.config.sh_degree
+            "inconsistent header: {} channels for SH degree {} and colour network {:?}",
+            h.channels, h.config.sh_degree, h.colour_net
         )));
+    }
+    if let Some(n) = h.colour_net {
+        if n.dir_terms != sh_coeffs(h.config.sh_degree)
+            || n.features + n.dir_terms > MAX_INPUTS
+            || n.hidden == 0
+            || n.hidden > MAX_HIDDEN
+        {
+            return Err(bad(format!(
+                "inconsistent header: colour network {n:?} for SH degree {}",
+                h.config.sh_degree
+            )));
+        }
     }
     // The brick index is dense over the box: bound the box so a corrupt header cannot ask for
     // an absurd allocation (2^32 vertices: a 1600^3 grid).

@@ -64,6 +64,7 @@
 
 pub mod bounds;
 pub mod checks;
+pub mod colour_net;
 pub mod depth;
 pub mod edge;
 pub mod eval;

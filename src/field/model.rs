@@ -7,6 +7,7 @@
 //! `delta` is the sample spacing measured in units of the finest voxel, so a raw value keeps its
 //! meaning when the grid is refined.
 
+use super::colour_net::ColourNet;
 use super::grid::{Grid, BRICK, BRICK_VERTICES, NONE};
 use super::space::Space;
 use glam::Vec3;
@@ -41,6 +42,9 @@ pub struct Field {
     /// brick's vertices): the cell may hold density. A cell's 8 corners are always allocated
     /// when it is occupied; rays skip bricks whose word is 0.
     pub occupancy: Vec<u64>,
+    /// Colour from features through a network ([`ColourNet`]) instead of SH coefficients: the
+    /// channels are then [raw density, features].
+    pub net: Option<ColourNet>,
 }
 
 pub fn sh_coeffs(degree: u32) -> usize {
@@ -108,9 +112,39 @@ impl Field {
             voxel,
             occupancy: Vec::new(),
             grid,
+            net: None,
         };
         f.fill_occupancy(true);
         f
+    }
+
+    /// The same box and dims with colour from `features` grid channels through a network of
+    /// `hidden` units (its direction input: the SH basis to the config's degree); every vertex
+    /// starts at density 0 and zero features.
+    pub fn with_colour_net(mut self, features: usize, hidden: usize, seed: u64) -> Field {
+        let ch = 1 + features;
+        self.grid = Grid::new(self.grid.dims, ch, &vec![0.0; ch]);
+        self.fill_occupancy(true);
+        self.net = Some(ColourNet::new(features, self.sh_k(), hidden, seed));
+        self
+    }
+
+    /// Colour of a sample from its interpolated colour channels `feat` (SH coefficients or
+    /// features) and its direction's SH basis; `x` and `h` are scratch for the network.
+    #[inline]
+    pub fn shade(&self, feat: &[f32], basis: &[f32; 9], x: &mut [f32], h: &mut [f32]) -> [f32; 3] {
+        let k = self.sh_k();
+        match &self.net {
+            Some(net) => {
+                x[..net.features].copy_from_slice(&feat[..net.features]);
+                x[net.features..net.inputs()].copy_from_slice(&basis[..k]);
+                net.forward(x, h)
+            }
+            None => [0, 1, 2].map(|c| {
+                let coef = &feat[c * k..(c + 1) * k];
+                sigmoid(coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum())
+            }),
+        }
     }
 
     /// Grid dimensions (vertices) for a box and a voxel size: cubic voxels, at least 2 per axis.
@@ -388,6 +422,10 @@ impl Field {
                 }
                 let vals = &mut self.grid.data[v as usize * ch..(v as usize + 1) * ch];
                 vals[0] = vals[0].max(raw);
+                // A colour network's features have no colour of their own to set.
+                if self.net.is_some() {
+                    continue;
+                }
                 for c in 0..3 {
                     let x = (rgb[c] as f32 / 255.0).clamp(0.02, 0.98);
                     vals[1 + c * k] = (x / (1.0 - x)).ln() / C0;

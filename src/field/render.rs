@@ -13,6 +13,7 @@
 // Index loops over the 3 colour channels read as the maths does; iterators would obscure it.
 #![allow(clippy::needless_range_loop)]
 
+use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
 use super::grid::BRICK;
 use super::model::{sh_basis, sigmoid, softplus, Field};
 use super::space::{ContractedSteps, LineDepth, RayPath};
@@ -49,7 +50,13 @@ pub struct Sample {
     pub rgb: [f32; 3],
     /// sigmoid(raw + shift): d softplus / d raw.
     pub dsp: f32,
+    /// Whether its colour was computed (a network's colour skips samples of negligible weight;
+    /// `rgb` is then 0).
+    pub shaded: bool,
 }
+
+/// Weight (T alpha) below which a network-coloured sample gets no colour.
+pub const NET_MIN_WEIGHT: f32 = 3e-3;
 
 /// The result of one ray.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -113,6 +120,9 @@ struct Marcher<'a> {
     trans: f32,
     out: RayOut,
     feat: [f32; 28],
+    /// Scratch for a network's inputs and hidden units.
+    x: [f32; MAX_INPUTS],
+    h: [f32; MAX_HIDDEN],
     samples: &'a mut Vec<Sample>,
 }
 
@@ -129,6 +139,8 @@ impl<'a> Marcher<'a> {
             trans: 1.0,
             out: RayOut::default(),
             feat: [0f32; 28],
+            x: [0f32; MAX_INPUTS],
+            h: [0f32; MAX_HIDDEN],
             samples,
         }
     }
@@ -197,15 +209,16 @@ impl<'a> Marcher<'a> {
         if alpha < self.opt.alpha_thresh {
             return true;
         }
-        let (k, ch) = (f.sh_k(), f.grid.channels);
-        f.grid.interp_range(&kc, 1, &mut self.feat[..ch - 1]);
-        let mut rgb = [0f32; 3];
-        for (c, v) in rgb.iter_mut().enumerate() {
-            let coef = &self.feat[c * k..(c + 1) * k];
-            let s: f32 = coef.iter().zip(&self.basis[..k]).map(|(a, b)| a * b).sum();
-            *v = sigmoid(s);
-        }
         let w = self.trans * alpha;
+        // A network's colour costs a few thousand multiply-adds: samples that add almost
+        // nothing to the pixel keep their alpha but no colour (DVGO's fast_color_thres).
+        let shaded = f.net.is_none() || w >= NET_MIN_WEIGHT;
+        let mut rgb = [0f32; 3];
+        if shaded {
+            let ch = f.grid.channels;
+            f.grid.interp_range(&kc, 1, &mut self.feat[..ch - 1]);
+            rgb = f.shade(&self.feat, &self.basis, &mut self.x, &mut self.h);
+        }
         for c in 0..3 {
             self.out.rgb[c] += w * rgb[c];
         }
@@ -219,6 +232,7 @@ impl<'a> Marcher<'a> {
             trans: self.trans,
             rgb,
             dsp: sigmoid(raw),
+            shaded,
         });
         self.trans *= 1.0 - alpha;
         self.trans >= self.opt.term_thresh
@@ -250,7 +264,8 @@ pub struct RayGrad<'a> {
 
 /// Backward of [`forward`] for the loss gradients `g`. For each kept sample, `emit(sample,
 /// grad)` receives the gradient of the loss with respect to the interpolated channels [raw
-/// density, SH coefficients].
+/// density, SH coefficients or features]; a network's weight gradient is added to `net_grad`.
+#[allow(clippy::too_many_arguments)]
 pub fn backward(
     f: &Field,
     opt: &RenderOptions,
@@ -258,6 +273,7 @@ pub fn backward(
     bg: [f32; 3],
     samples: &[Sample],
     g: &RayGrad,
+    net_grad: &mut [f32],
     mut emit: impl FnMut(&Sample, &[f32]),
 ) {
     let (g_rgb, g_alpha, g_depth, g_weights) = (g.rgb, g.alpha, g.depth, g.weights);
@@ -271,6 +287,7 @@ pub fn backward(
     let mut r_a = 0.0f32;
     let mut r_d = 0.0f32;
     let mut grad = [0f32; 28];
+    let (mut feat, mut x, mut h) = ([0f32; 28], [0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
     for (i, s) in samples.iter().enumerate().rev() {
         let w = s.trans * s.alpha;
         // Everything linear in the weights as one value per sample: depth (t) and g_weights.
@@ -283,10 +300,25 @@ pub fn backward(
         g_a = g_a * s.trans + g.alpha_each;
         // d alpha / d raw = (1 - alpha) * delta * sigmoid(raw)
         grad[0] = g_a * (1.0 - s.alpha) * delta * s.dsp;
-        for c in 0..3 {
-            let gc = g_rgb[c] * w * s.rgb[c] * (1.0 - s.rgb[c]);
-            for j in 0..k {
-                grad[1 + c * k + j] = gc * basis[j];
+        match &f.net {
+            Some(net) if s.shaded => {
+                // The network's hidden units are recomputed rather than stored per sample.
+                let kc = f
+                    .grid
+                    .corners_of(f.grid.cell_of_base(s.base as usize), s.frac);
+                f.grid.interp_range(&kc, 1, &mut feat[..ch - 1]);
+                f.shade(&feat, &basis, &mut x, &mut h);
+                let gc = g_rgb.map(|c| c * w);
+                net.backward(&x, &h, s.rgb, gc, &mut grad[1..], net_grad);
+            }
+            Some(_) => grad[1..ch].fill(0.0),
+            None => {
+                for c in 0..3 {
+                    let gc = g_rgb[c] * w * s.rgb[c] * (1.0 - s.rgb[c]);
+                    for j in 0..k {
+                        grad[1 + c * k + j] = gc * basis[j];
+                    }
+                }
             }
         }
         emit(s, &grad[..ch]);
@@ -460,8 +492,16 @@ mod tests {
     /// sparsity.
     #[test]
     fn gradients_match_finite_differences() {
-        for degree in 0..=2 {
-            let f0 = random_field(3 + degree as u64, degree);
+        // SH degrees 0..=2, then colour from 5 features through a network of 6 hidden units.
+        for degree in 0..=3 {
+            let f0 = if degree < 3 {
+                random_field(3 + degree as u64, degree)
+            } else {
+                let mut f = random_field(6, 1).with_colour_net(5, 6, 2);
+                let mut r = Rng::new(8);
+                f.grid.data.iter_mut().for_each(|v| *v = r.normal() as f32);
+                f
+            };
             let opt = RenderOptions {
                 step: 0.37,
                 alpha_thresh: 0.0,
@@ -494,6 +534,7 @@ mod tests {
             let mut grad = vec![0f32; f0.grid.data.len()];
             let nx = f0.grid.dims[0] as u32;
             let ny = f0.grid.dims[1] as u32;
+            let mut net_grad = vec![0f32; f0.net.as_ref().map_or(0, |n| n.weights.len())];
             backward(
                 &f0,
                 &opt,
@@ -507,6 +548,7 @@ mod tests {
                     weights: &g_w,
                     alpha_each: SPARSE,
                 },
+                &mut net_grad,
                 |s, g| {
                     let z = s.base / (nx * ny);
                     let y = (s.base / nx) % ny;
@@ -538,6 +580,19 @@ mod tests {
                 }
             }
             assert!(checked > 20, "only {checked} parameters touched");
+            for i in 0..net_grad.len() {
+                let eps = 1e-2f32;
+                let (mut fp, mut fm) = (f0.clone(), f0.clone());
+                fp.net.as_mut().unwrap().weights[i] += eps;
+                fm.net.as_mut().unwrap().weights[i] -= eps;
+                let num = (total(&fp) - total(&fm)) / (2.0 * eps as f64);
+                let ana = net_grad[i] as f64;
+                let err = (num - ana).abs() / (num.abs().max(ana.abs()).max(1e-2));
+                assert!(
+                    err < 2e-2,
+                    "network weight {i}: numeric {num} vs analytic {ana}"
+                );
+            }
         }
     }
 }

@@ -3,6 +3,7 @@
 //! count, a time budget or a PSNR plateau.
 
 use super::bounds::{fit_budget, object_box, pixel_footprint, visual_hull};
+use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
 use super::layout::SpaceSetup;
 use super::model::{Field, FieldConfig};
 use super::rays::RaySet;
@@ -17,6 +18,11 @@ use std::time::Instant;
 #[derive(Clone, Debug)]
 pub struct SetupConfig {
     pub sh_degree: u32,
+    /// Colour from this many feature channels through a network of `net_hidden` units
+    /// ([`super::colour_net`]; the direction enters as its SH basis to `sh_degree`); 0: SH
+    /// coefficients on the grid.
+    pub net_features: usize,
+    pub net_hidden: usize,
     /// Voxels per pixel footprint at the median viewing distance.
     pub voxels_per_pixel: f32,
     /// Bytes for the grid and its optimiser state.
@@ -29,7 +35,34 @@ pub struct SetupConfig {
 impl SetupConfig {
     /// Grid bytes per vertex: parameters, gradient, Adam m and v, plus the touch stamp.
     pub fn bytes_per_vertex(&self) -> usize {
-        (1 + 3 * super::model::sh_coeffs(self.sh_degree)) * 16 + 4
+        self.channels() * 16 + 4
+    }
+
+    /// Whether the colour settings can be built: a clear error, not a panic, for user input.
+    pub fn check(&self) -> Result<()> {
+        let dir_terms = super::model::sh_coeffs(self.sh_degree.min(2));
+        let most = (MAX_INPUTS - dir_terms).min(MAX_FEATURES);
+        if self.net_features > most || (self.net_features > 0 && self.net_hidden == 0) {
+            return Err(crate::error::Error::invalid(format!(
+                "a colour network takes 1 to {most} features and 1 to {MAX_HIDDEN} hidden units at SH degree {} (asked for {} and {})",
+                self.sh_degree, self.net_features, self.net_hidden
+            )));
+        }
+        if self.net_hidden > MAX_HIDDEN {
+            return Err(crate::error::Error::invalid(format!(
+                "a colour network takes at most {MAX_HIDDEN} hidden units (asked for {})",
+                self.net_hidden
+            )));
+        }
+        Ok(())
+    }
+
+    /// Grid channels per vertex: density and the colour's.
+    pub fn channels(&self) -> usize {
+        match self.net_features {
+            0 => 1 + 3 * super::model::sh_coeffs(self.sh_degree),
+            f => 1 + f,
+        }
     }
 }
 
@@ -37,6 +70,8 @@ impl Default for SetupConfig {
     fn default() -> Self {
         SetupConfig {
             sh_degree: 1,
+            net_features: 0,
+            net_hidden: 32,
             voxels_per_pixel: 1.0,
             memory_budget: 1 << 30,
             pad: 0.02,
@@ -44,6 +79,9 @@ impl Default for SetupConfig {
         }
     }
 }
+
+/// The most colour channels a vertex holds (the render's per-sample buffers).
+const MAX_FEATURES: usize = 27;
 
 /// What the setup chose, for the log and the benchmark JSON.
 #[derive(Clone, Debug, Serialize)]
@@ -72,6 +110,7 @@ pub fn prepare(
     setup: &SetupConfig,
     cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
+    setup.check()?;
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
     let why = format!("{box_why}; {why}");
@@ -103,6 +142,7 @@ pub fn prepare_scene(
     cfg: TrainConfig,
     seeds: &[(Vec3, [u8; 3])],
 ) -> Result<(Trainer, RaySet, SetupReport)> {
+    setup.check()?;
     let why = format!(
         "{}; one pixel covers {:.5} space units",
         space.why, space.pixel_footprint
@@ -246,6 +286,9 @@ impl GridPlan {
             self.hi,
             stage_dims(self.final_dims, first_scale),
         );
+        if setup.net_features > 0 {
+            f = f.with_colour_net(setup.net_features, setup.net_hidden, cfg.seed);
+        }
         f.space = space;
         f
     }

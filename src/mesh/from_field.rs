@@ -12,7 +12,8 @@ use super::frame::GltfFrame;
 use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
-use crate::field::model::{sigmoid, Field};
+use crate::field::colour_net::{MAX_HIDDEN, MAX_INPUTS};
+use crate::field::model::{sh_basis, Field};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -87,9 +88,8 @@ fn raw_at(field: &Field, p: Vec3) -> f32 {
     field.grid.interp_channel(&k, 0)
 }
 
-/// View-independent colour (the SH DC term) at a world point, linear 0..1.
-fn base_color_at(field: &Field, p: Vec3) -> [f32; 3] {
-    const C0: f32 = 0.282_094_8;
+/// Colour at a world point seen along `basis` (an SH basis of a direction), linear 0..1.
+fn color_at(field: &Field, p: Vec3, basis: &[f32; 9]) -> [f32; 3] {
     let g = field.to_grid(p);
     let dims = field.grid.dims;
     let g = Vec3::new(
@@ -99,8 +99,22 @@ fn base_color_at(field: &Field, p: Vec3) -> [f32; 3] {
     );
     let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
     let k = field.grid.corners_of(b, fr);
-    let sh = field.sh_k();
-    [0, 1, 2].map(|c| sigmoid(C0 * field.grid.interp_channel(&k, 1 + c * sh)))
+    let mut feat = [0f32; 28];
+    let ch = field.grid.channels;
+    field.grid.interp_range(&k, 1, &mut feat[..ch - 1]);
+    let (mut x, mut h) = ([0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
+    field.shade(&feat, basis, &mut x, &mut h)
+}
+
+/// The basis a vertex's colour is read with: SH colour keeps its view-independent (DC) term
+/// only; a colour network is asked for the view straight at the surface (along `-n`).
+fn vertex_basis(field: &Field, n: Vec3) -> [f32; 9] {
+    let mut basis = [0f32; 9];
+    match field.net {
+        Some(_) => sh_basis(field.config.sh_degree, -n, &mut basis),
+        None => basis[0] = 0.282_094_8,
+    }
+    basis
 }
 
 /// Colour at a surface vertex: the DC colour composited along the inward normal over two voxels,
@@ -110,6 +124,7 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
     let step = 0.25 * field.voxel;
     let delta = step / field.config.base_voxel;
     let shift = field.shift();
+    let basis = vertex_basis(field, n);
     let mut trans = 1.0f32;
     let mut acc = [0.0f32; 3];
     let mut wsum = 0.0f32;
@@ -122,7 +137,7 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
         let alpha = 1.0 - (-crate::field::model::softplus(raw + shift) * delta).exp();
         let w = trans * alpha;
         if w > 0.0 {
-            let c = base_color_at(field, q);
+            let c = color_at(field, q, &basis);
             for k in 0..3 {
                 acc[k] += w * c[k];
             }
@@ -134,7 +149,7 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
         }
     }
     if wsum <= 1e-6 {
-        return base_color_at(field, p);
+        return color_at(field, p, &basis);
     }
     acc.map(|a| (a / wsum).clamp(0.0, 1.0))
 }
