@@ -45,6 +45,10 @@ pub struct ExtractCmd {
     pub depth: DepthMode,
     #[arg(long, default_value_t = ExtractOptions::default().fit.seed)]
     pub seed: u64,
+    /// Colour from this many features per vertex through a small network instead of SH
+    /// coefficients (0; see `objnerf train --help`).
+    #[arg(long, default_value_t = 0)]
+    pub colour_net: usize,
     /// Marching-cubes samples along the box's longest side (default: the field's grid).
     #[arg(long)]
     pub resolution: Option<usize>,
@@ -78,6 +82,7 @@ impl ExtractCmd {
         o.fit.steps = self.steps;
         o.fit.depth = self.depth;
         o.fit.seed = self.seed;
+        o.fit.setup.net_features = self.colour_net;
         o.mesh.resolution = self.resolution;
         o.mesh.iso_alpha = self.iso;
         o.turntable.frames = self.frames.max(1);
@@ -174,6 +179,10 @@ pub struct DemoCmd {
     /// Most training steps.
     #[arg(long, default_value_t = demo_options().fit.steps)]
     pub steps: usize,
+    /// Colour from this many features per vertex through a small network instead of SH
+    /// coefficients (0; see `objnerf train --help`).
+    #[arg(long, default_value_t = 0)]
+    pub colour_net: usize,
 }
 
 impl DemoCmd {
@@ -181,6 +190,7 @@ impl DemoCmd {
         let mut opts = demo_options();
         opts.fit.time_budget = Some(self.time_budget);
         opts.fit.steps = self.steps;
+        opts.fit.setup.net_features = self.colour_net;
         let setup = prepare_demo(&self.out, &self.object)?;
         let s = &setup.written;
         println!(

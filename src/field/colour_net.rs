@@ -6,6 +6,7 @@
 //! rays, then in chunk order: deterministic) and stepped with its own Adam
 //! ([`NetAdam`]). Forward and backward are written out by hand, as the rest of the field.
 
+use super::activation::sigmoid;
 use crate::util::Rng;
 
 /// The most inputs (features + direction terms) and hidden units the render buffers hold.
@@ -68,7 +69,7 @@ impl ColourNet {
             h.iter_mut().zip(row).for_each(|(a, w)| *a += xi * w);
         }
         h.iter_mut().for_each(|a| *a = a.max(0.0));
-        [0, 1, 2].map(|c| super::model::sigmoid(b2[c] + dot(&w2[c * nh..(c + 1) * nh], h)))
+        [0, 1, 2].map(|c| sigmoid(b2[c] + dot(&w2[c * nh..(c + 1) * nh], h)))
     }
 
     /// Backward of [`ColourNet::forward`] for dL/dRGB `g`: adds dL/dweights to `g_w` and writes

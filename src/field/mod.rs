@@ -20,10 +20,14 @@
 //! - **One vertex grid, all channels of a vertex together** (`[raw density, SH r, SH g, SH b]`,
 //!   13 floats at SH degree 1): a sample's trilinear gather and its gradient scatter each touch 8
 //!   short contiguous runs.
-//! - **Colour: SH degree 1 on the grid, no MLP.** A feature grid + MLP (DVGO) costs thousands of
-//!   multiply-adds per sample forward and again backward; SH costs ~3K. Measured on lego within a
-//!   fixed wall-clock budget, degree 1 beat degree 0 (less view-dependent colour) and degree 2
-//!   (28 floats per vertex: slower steps, and the memory budget forced a coarser grid).
+//! - **Colour: SH degree 1 on the grid by default; a feature grid + small network
+//!   ([`colour_net`]) as an option.** Within the same wall-clock budget on lego, degree 1 beats
+//!   degree 0 (less view-dependent colour) and degree 2 (28 floats per vertex: slower steps, a
+//!   coarser grid in the memory budget). The network (8 features per vertex, 32 hidden units,
+//!   colour only where a sample's weight reaches 3e-3, DVGO's fast_color_thres) fits lego sooner
+//!   with less memory (200^2: +0.75 dB at 60 s, equal at 300 s; 800^2: +0.6 dB in 20 min) but
+//!   scores 0.9 dB below SH 1 on the demo's textured sphere and 0.24 dB below on fox, so it is
+//!   not the default (`examples/results/field.md`, "Colour", and `field_colours.{json,svg}`).
 //! - **Density post-activated** as DVGO: interpolate the raw value, then softplus and alpha, so a
 //!   cell can hold a sharp surface; `delta` is in finest-voxel units so coarse-to-fine growth keeps
 //!   densities meaningful.
@@ -62,6 +66,7 @@
 //!   unnormalised sum reads a 0.5% opacity deficit at 2 m as a 1 cm error, and in metres a 1 cm
 //!   error squared is too small to matter next to the colour loss.
 
+pub mod activation;
 pub mod bounds;
 pub mod checks;
 pub mod colour_net;

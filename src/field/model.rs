@@ -79,19 +79,7 @@ pub fn sh_basis(degree: u32, d: Vec3, out: &mut [f32; 9]) {
     }
 }
 
-#[inline]
-pub fn softplus(x: f32) -> f32 {
-    if x > 15.0 {
-        x
-    } else {
-        x.exp().ln_1p()
-    }
-}
-
-#[inline]
-pub fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
-}
+pub use super::activation::{sigmoid, softplus};
 
 /// Raw density that makes one finest voxel this opaque where a sparse point was seen.
 const SEED_ALPHA: f32 = 0.3;
