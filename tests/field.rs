@@ -501,20 +501,25 @@ fn version_2_model_files_still_load() {
     }
 }
 
+/// A model file's bytes with its header's version digit `from` changed to `to`.
+fn with_version(bytes: &[u8], from: u8, to: u8) -> Vec<u8> {
+    let key = format!("\"version\": {from}");
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key.as_bytes())
+        .expect("the header's version");
+    let mut out = bytes.to_vec();
+    out[at + key.len() - 1] = b'0' + to;
+    out
+}
+
 /// Version 3 (bricks, SH colour only) is version 4 without a colour network: it still loads.
 #[test]
 fn version_3_model_files_still_load() {
     let dir = tempfile::tempdir().unwrap();
     let p = small_model_file(dir.path());
-    let bytes = std::fs::read(&p).unwrap();
-    let at = bytes
-        .windows(12)
-        .position(|w| w == b"\"version\": 4")
-        .expect("the header's version");
-    let mut v3 = bytes.clone();
-    v3[at + 11] = b'3';
     let old = dir.path().join("v3.objf");
-    std::fs::write(&old, v3).unwrap();
+    std::fs::write(&old, with_version(&std::fs::read(&p).unwrap(), 4, 3)).unwrap();
     let (a, b) = (io::load(&p).unwrap(), io::load(&old).unwrap());
     assert!(a.field == b.field && b.field.net.is_none());
 }
@@ -523,13 +528,7 @@ fn version_3_model_files_still_load() {
 #[test]
 fn a_newer_model_version_is_a_clear_error() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/model_v2.objf");
-    let bytes = std::fs::read(path).unwrap();
-    let at = bytes
-        .windows(12)
-        .position(|w| w == b"\"version\": 2")
-        .expect("the header's version");
-    let mut newer = bytes.clone();
-    newer[at + 11] = b'9';
+    let newer = with_version(&std::fs::read(path).unwrap(), 2, 9);
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("newer.objf");
     std::fs::write(&file, newer).unwrap();
