@@ -28,11 +28,13 @@ use super::model::{sh_coeffs, Field, FieldConfig};
 use super::space::Space;
 use super::train::{TrainConfig, Trainer};
 use crate::error::{Error, Result};
-use crate::util::digest::hex;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 use std::path::Path;
+
+mod arrays;
+pub use arrays::ArrayInfo;
+use arrays::{read_arrays, Arrays, Blob};
 
 pub const MAGIC: &[u8; 8] = b"OBJNFLD\n";
 /// 4: an optional colour network (the header's `colour_net`, its weights in "colour_net").
@@ -40,14 +42,6 @@ pub const MAGIC: &[u8; 8] = b"OBJNFLD\n";
 /// optimiser state per brick). 2: a dense grid with the field's [`Space`] in the header. 1: a
 /// dense box-space grid. Versions 1 and 2 still load (as a grid with every brick allocated).
 pub const VERSION: u32 = 4;
-
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct ArrayInfo {
-    pub name: String,
-    pub dtype: String,
-    pub len: u64,
-    pub sha256: String,
-}
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Header {
@@ -200,63 +194,6 @@ impl Trainer {
     }
 }
 
-/// An array to write, as its values; turned into little-endian bytes a chunk at a time.
-enum Blob<'a> {
-    F32(&'a [f32]),
-    U64(&'a [u64]),
-}
-
-impl Blob<'_> {
-    fn dtype(&self) -> &'static str {
-        match self {
-            Blob::F32(_) => "f32",
-            Blob::U64(_) => "u64",
-        }
-    }
-
-    fn len(&self) -> usize {
-        match self {
-            Blob::F32(v) => v.len(),
-            Blob::U64(v) => v.len(),
-        }
-    }
-
-    fn for_each_chunk(
-        &self,
-        mut f: impl FnMut(&[u8]) -> std::io::Result<()>,
-    ) -> std::io::Result<()> {
-        const N: usize = 1 << 14;
-        let mut buf = Vec::with_capacity(N * 8);
-        match self {
-            Blob::F32(v) => {
-                for c in v.chunks(N) {
-                    buf.clear();
-                    buf.extend(c.iter().flat_map(|x| x.to_le_bytes()));
-                    f(&buf)?;
-                }
-            }
-            Blob::U64(v) => {
-                for c in v.chunks(N) {
-                    buf.clear();
-                    buf.extend(c.iter().flat_map(|x| x.to_le_bytes()));
-                    f(&buf)?;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn sha256(&self) -> String {
-        let mut h = Sha256::new();
-        self.for_each_chunk(|b| {
-            h.update(b);
-            Ok(())
-        })
-        .expect("hashing does not fail");
-        hex(&h.finalize())
-    }
-}
-
 pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
     let f = m.field;
     let bricks: Vec<u64> = f.grid.brick_list().iter().map(|&b| pack_brick(b)).collect();
@@ -350,7 +287,7 @@ pub fn read_from<R: std::io::Read + std::io::Seek>(
     with_adam: bool,
 ) -> Result<Model> {
     let (h, start) = read_header(path, &mut r, total)?;
-    let mut arrays = read_arrays(path, &mut r, &h, start, total, with_adam)?;
+    let mut arrays = read_arrays(path, &mut r, &h.arrays, start, total, with_adam)?;
     let bad = |msg: String| Error::format(path, msg);
     let (field, adam) = if h.version >= 3 {
         bricked_field(&h, &mut arrays, with_adam).map_err(bad)?
@@ -603,97 +540,4 @@ fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(H
         )));
     }
     Ok((h, 16 + hlen))
-}
-
-/// The arrays a header lists, by name and type.
-#[derive(Default)]
-struct Arrays {
-    f32s: std::collections::HashMap<String, Vec<f32>>,
-    u64s: std::collections::HashMap<String, Vec<u64>>,
-}
-
-/// Read the header's arrays from `pos` on, each checked against its length (before anything is
-/// allocated) and hash; the optimiser state is skipped unless `with_adam`. The file must end
-/// where the last array ends.
-fn read_arrays<R: std::io::Read + std::io::Seek>(
-    path: &Path,
-    r: &mut R,
-    h: &Header,
-    mut pos: u64,
-    total: u64,
-    with_adam: bool,
-) -> Result<Arrays> {
-    let bad = |msg: String| Error::format(path, msg);
-    let io_err = |e: std::io::Error| Error::io(path, e);
-    let mut out = Arrays::default();
-    let mut chunk = vec![0u8; 1 << 16];
-    for a in &h.arrays {
-        let size: u64 = match a.dtype.as_str() {
-            "f32" => 4,
-            "u64" => 8,
-            t => return Err(bad(format!("array '{}' has unknown dtype '{t}'", a.name))),
-        };
-        let n = a
-            .len
-            .checked_mul(size)
-            .filter(|&n| pos.checked_add(n).is_some_and(|end| end <= total))
-            .ok_or_else(|| {
-                bad(format!(
-                    "truncated: array '{}' needs {} bytes but only {} remain",
-                    a.name,
-                    a.len.saturating_mul(size),
-                    total - pos
-                ))
-            })?;
-        pos += n;
-        if !with_adam && a.name.starts_with("adam_") {
-            r.seek(std::io::SeekFrom::Start(pos)).map_err(io_err)?;
-            continue;
-        }
-        let mut hash = Sha256::new();
-        let (mut fv, mut uv) = (Vec::new(), Vec::new());
-        if size == 4 {
-            fv.reserve_exact(a.len as usize);
-        } else {
-            uv.reserve_exact(a.len as usize);
-        }
-        let mut left = n as usize;
-        while left > 0 {
-            let k = left.min(chunk.len());
-            r.read_exact(&mut chunk[..k]).map_err(io_err)?;
-            hash.update(&chunk[..k]);
-            if size == 4 {
-                fv.extend(
-                    chunk[..k]
-                        .chunks_exact(4)
-                        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))),
-                );
-            } else {
-                uv.extend(
-                    chunk[..k]
-                        .chunks_exact(8)
-                        .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes"))),
-                );
-            }
-            left -= k;
-        }
-        if hex(&hash.finalize()) != a.sha256 {
-            return Err(bad(format!(
-                "corrupt: array '{}' fails its SHA-256 check",
-                a.name
-            )));
-        }
-        if size == 4 {
-            out.f32s.insert(a.name.clone(), fv);
-        } else {
-            out.u64s.insert(a.name.clone(), uv);
-        }
-    }
-    if pos != total {
-        return Err(bad(format!(
-            "{} unexpected bytes after the last array",
-            total - pos
-        )));
-    }
-    Ok(out)
 }
