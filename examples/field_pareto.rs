@@ -171,15 +171,25 @@ fn main() {
         "lego": lego_runs,
         "demo": demo_runs,
     });
-    std::fs::create_dir_all(&out_dir).expect("output folder");
-    let json_path = out_dir.join("field_pareto.json");
+    write_result(&out_dir, "field_pareto", &result, chart);
+}
+
+/// Write `OUT/STEM.json` (atomically) and its chart `OUT/STEM.svg`.
+fn write_result(
+    out_dir: &Path,
+    stem: &str,
+    result: &Value,
+    chart: fn(&Value, &Path) -> ChartResult<()>,
+) {
+    std::fs::create_dir_all(out_dir).expect("output folder");
+    let json_path = out_dir.join(format!("{stem}.json"));
     objnerf::util::atomic::write_bytes_atomic(
         &json_path,
-        serde_json::to_string_pretty(&result).unwrap().as_bytes(),
+        serde_json::to_string_pretty(result).unwrap().as_bytes(),
     )
     .expect("write JSON");
-    chart(&result, &out_dir.join("field_pareto.svg")).expect("chart");
-    eprintln!("wrote {} and field_pareto.svg", json_path.display());
+    chart(result, &out_dir.join(format!("{stem}.svg"))).expect("chart");
+    eprintln!("wrote {} and {stem}.svg", json_path.display());
 }
 
 fn chart(result: &Value, path: &Path) -> ChartResult<()> {
@@ -298,15 +308,7 @@ fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
         "load_average_before": load_before,
         "runs": runs,
     });
-    std::fs::create_dir_all(out_dir).expect("output folder");
-    let json_path = out_dir.join("field_sizes.json");
-    objnerf::util::atomic::write_bytes_atomic(
-        &json_path,
-        serde_json::to_string_pretty(&result).unwrap().as_bytes(),
-    )
-    .expect("write JSON");
-    sizes_chart(&result, &out_dir.join("field_sizes.svg")).expect("chart");
-    eprintln!("wrote {} and field_sizes.svg", json_path.display());
+    write_result(out_dir, "field_sizes", &result, sizes_chart);
 }
 
 fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
@@ -421,14 +423,7 @@ fn colours(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
         "lego": lego_runs,
         "demo": demo_runs,
     });
-    std::fs::create_dir_all(out_dir).expect("output folder");
-    objnerf::util::atomic::write_bytes_atomic(
-        &json_path,
-        serde_json::to_string_pretty(&result).unwrap().as_bytes(),
-    )
-    .expect("write JSON");
-    colours_chart(&result, &out_dir.join("field_colours.svg")).expect("chart");
-    eprintln!("wrote {} and field_colours.svg", json_path.display());
+    write_result(out_dir, "field_colours", &result, colours_chart);
 }
 
 fn colours_chart(result: &Value, path: &Path) -> ChartResult<()> {
