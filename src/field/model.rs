@@ -81,6 +81,10 @@ pub fn sh_basis(degree: u32, d: Vec3, out: &mut [f32; 9]) {
 
 pub use super::activation::{sigmoid, softplus};
 
+/// The most channels a vertex holds (density and colour): the size of the renderer's
+/// per-sample buffers (SH degree 2: 28; a colour network's features are bounded by it too).
+pub const MAX_CHANNELS: usize = 28;
+
 /// Raw density that makes one finest voxel this opaque where a sparse point was seen.
 const SEED_ALPHA: f32 = 0.3;
 

@@ -15,7 +15,7 @@
 
 use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
 use super::grid::BRICK;
-use super::model::{sh_basis, sigmoid, softplus, Field};
+use super::model::{sh_basis, sigmoid, softplus, Field, MAX_CHANNELS};
 use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
@@ -119,7 +119,7 @@ struct Marcher<'a> {
     shift: f32,
     trans: f32,
     out: RayOut,
-    feat: [f32; 28],
+    feat: [f32; MAX_CHANNELS],
     /// Scratch for a network's inputs and hidden units.
     x: [f32; MAX_INPUTS],
     h: [f32; MAX_HIDDEN],
@@ -138,7 +138,7 @@ impl<'a> Marcher<'a> {
             shift: f.shift(),
             trans: 1.0,
             out: RayOut::default(),
-            feat: [0f32; 28],
+            feat: [0f32; MAX_CHANNELS],
             x: [0f32; MAX_INPUTS],
             h: [0f32; MAX_HIDDEN],
             samples,
@@ -286,8 +286,8 @@ pub fn backward(
     let mut r_rgb = bg;
     let mut r_a = 0.0f32;
     let mut r_d = 0.0f32;
-    let mut grad = [0f32; 28];
-    let (mut feat, mut x, mut h) = ([0f32; 28], [0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
+    let mut grad = [0f32; MAX_CHANNELS];
+    let (mut feat, mut x, mut h) = ([0f32; MAX_CHANNELS], [0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
     for (i, s) in samples.iter().enumerate().rev() {
         let w = s.trans * s.alpha;
         // Everything linear in the weights as one value per sample: depth (t) and g_weights.

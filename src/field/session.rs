@@ -5,7 +5,7 @@
 use super::bounds::{fit_budget, object_box, pixel_footprint, visual_hull};
 use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
 use super::layout::SpaceSetup;
-use super::model::{Field, FieldConfig};
+use super::model::{Field, FieldConfig, MAX_CHANNELS};
 use super::rays::RaySet;
 use super::space::Space;
 use super::train::{stage_dims, StepStats, TrainConfig, Trainer};
@@ -41,7 +41,7 @@ impl SetupConfig {
     /// Whether the colour settings can be built: a clear error, not a panic, for user input.
     pub fn check(&self) -> Result<()> {
         let dir_terms = super::model::sh_coeffs(self.sh_degree.min(2));
-        let most = (MAX_INPUTS - dir_terms).min(MAX_FEATURES);
+        let most = (MAX_INPUTS - dir_terms).min(MAX_CHANNELS - 1);
         if self.net_features > most || (self.net_features > 0 && self.net_hidden == 0) {
             return Err(crate::error::Error::invalid(format!(
                 "a colour network takes 1 to {most} features and 1 to {MAX_HIDDEN} hidden units at SH degree {} (asked for {} and {})",
@@ -79,9 +79,6 @@ impl Default for SetupConfig {
         }
     }
 }
-
-/// The most colour channels a vertex holds (the render's per-sample buffers).
-const MAX_FEATURES: usize = 27;
 
 /// What the setup chose, for the log and the benchmark JSON.
 #[derive(Clone, Debug, Serialize)]

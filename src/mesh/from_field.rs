@@ -13,7 +13,7 @@ use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::colour_net::{MAX_HIDDEN, MAX_INPUTS};
-use crate::field::model::{sh_basis, Field};
+use crate::field::model::{sh_basis, Field, MAX_CHANNELS};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -99,7 +99,7 @@ fn color_at(field: &Field, p: Vec3, basis: &[f32; 9]) -> [f32; 3] {
     );
     let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
     let k = field.grid.corners_of(b, fr);
-    let mut feat = [0f32; 28];
+    let mut feat = [0f32; MAX_CHANNELS];
     let ch = field.grid.channels;
     field.grid.interp_range(&k, 1, &mut feat[..ch - 1]);
     let (mut x, mut h) = ([0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
