@@ -1,6 +1,7 @@
 //! Scene field on the demo scene: train on all views but every 6th, score the held-out ones
 //! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
-//! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_SPACE, SF_STEPS, SF_STAGES.
+//! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
+//! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES.
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
 
@@ -32,6 +33,9 @@ fn main() -> objnerf::Result<()> {
     }
     if let Some(m) = env::<usize>("SF_MEM_MB") {
         setup.memory_budget = m << 20;
+    }
+    if let Some(v) = env("SF_FIRST_SHARE") {
+        setup.first_stage_share = v;
     }
     let held: Vec<String> = scene
         .images

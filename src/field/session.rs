@@ -27,6 +27,11 @@ pub struct SetupConfig {
     pub voxels_per_pixel: f32,
     /// Bytes for the grid and its optimiser state.
     pub memory_budget: usize,
+    /// The share of `memory_budget` the first (dense) stage may take. The finest stage has 8x
+    /// its cells at half its voxel and keeps only the occupied bricks, so it needs the rest:
+    /// a first stage that took the whole budget left the finest no room to grow (lego 800^2:
+    /// every step at the finest grid the budget allowed, 44 k steps in 20 min).
+    pub first_stage_share: f32,
     /// Box padding, as a fraction of its size per side.
     pub pad: f32,
     pub alpha_init: f32,
@@ -74,6 +79,7 @@ impl Default for SetupConfig {
             net_hidden: 32,
             voxels_per_pixel: 1.0,
             memory_budget: 1 << 30,
+            first_stage_share: 0.25,
             pad: 0.02,
             alpha_init: 0.01,
         }
@@ -209,7 +215,8 @@ struct GridPlan {
 
 impl GridPlan {
     /// The finest voxel: `footprint / voxels_per_pixel`, made coarser only when the first stage
-    /// (dense, at the schedule's first scale) would not fit the memory budget. The finest stage
+    /// (dense, at the schedule's first scale) would not fit its share of the memory budget
+    /// ([`SetupConfig::first_stage_share`]). The finest stage
     /// is sparse: when it starts, the trainer fits its resolution to the budget by the bricks
     /// the occupied cells need ([`Trainer::budget`]).
     fn new(
@@ -224,15 +231,15 @@ impl GridPlan {
         let coarse = cfg.stages.first().map(|s| s.1).unwrap_or(1.0).min(1.0);
         let target = footprint / setup.voxels_per_pixel;
         let why = format!(
-            "{why}; {} voxel(s) per pixel -> voxel {target:.5}; the first stage at {coarse} of that resolution is dense",
-            setup.voxels_per_pixel
+            "{why}; {} voxel(s) per pixel -> voxel {target:.5}; the first stage at {coarse} of that resolution is dense, within {} of the memory",
+            setup.voxels_per_pixel, setup.first_stage_share
         );
         let (coarse_voxel, mut why) = fit_budget(
             hi - lo,
             target / coarse,
             why,
             bytes_per_vertex,
-            setup.memory_budget,
+            (setup.memory_budget as f64 * setup.first_stage_share.clamp(0.01, 1.0) as f64) as usize,
         );
         let voxel = coarse_voxel * coarse;
         let e = hi - lo;
