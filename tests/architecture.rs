@@ -158,7 +158,12 @@ fn references(code: &str) -> Vec<(bool, String)> {
         while let Some(i) = code[from..].find(key) {
             let s = from + i;
             from = s + key.len();
-            if s > 0 && (bytes[s - 1].is_ascii_alphanumeric() || bytes[s - 1] == b'_') {
+            // Inside a longer path (`a::super::`, the second `super` of `super::super::`).
+            if s > 0
+                && (bytes[s - 1].is_ascii_alphanumeric()
+                    || bytes[s - 1] == b'_'
+                    || bytes[s - 1] == b':')
+            {
                 continue;
             }
             let mut e = s;
@@ -463,10 +468,14 @@ fn the_checker_sees_imports() {
         absolute("super::train::X", &at, false).unwrap(),
         ["field", "train", "X"]
     );
+    assert_eq!(
+        references("x = super::super::render::f();"),
+        [(false, "super::super::render::f".to_string())]
+    );
     let re = reexports(&sources());
     assert_eq!(
         resolve(&["field".into(), "Trainer".into()], &re).unwrap(),
-        src().join("field/train.rs")
+        src().join("field/train/mod.rs")
     );
     let mut g: BTreeMap<u8, BTreeSet<u8>> = BTreeMap::new();
     g.entry(1).or_default().insert(2);
