@@ -20,7 +20,7 @@
 //! lego at 200^2 (60 and 300 s) and on the demo objects (3000 steps, held-out PSNR). Writes
 //! `OUT/field_colours.{json,svg}`; `--colours --replot` redraws the SVG.
 
-use objnerf::util::chart::{layers, series, svg, ChartResult, Panel};
+use objnerf::util::chart::{layers, series, svg, ChartResult, Panel, SeriesLabelPosition};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -353,6 +353,18 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
             layers(scatter_share),
         ),
     ];
+    // The legend (one entry a run kind) fills a corner: extend each y axis away from the
+    // points so it does not cover them (upwards for RSS, which starts near 0).
+    let panels = panels.map(|mut p| {
+        let span = p.y.end - p.y.start;
+        if p.y.start < 0.3 * span {
+            p.y = p.y.start.max(0.0)..p.y.end + 0.8 * span;
+            p.legend = SeriesLabelPosition::UpperLeft;
+        } else {
+            p.y = p.y.start - 0.8 * span..p.y.end;
+        }
+        p
+    });
     std::fs::write(path, svg((1500, 480), 1, &panels)?)?;
     Ok(())
 }

@@ -48,9 +48,11 @@
 //! - **Sparse bricks** ([`grid`]): only the 4^3-vertex bricks around occupied cells are stored,
 //!   so memory follows the occupied shell (lego 400^2 at the dense grid's resolution: 647 vs
 //!   910 MiB peak). The finest stage's resolution is one voxel per pixel footprint, coarsened
-//!   until its bricks fit the memory budget. Measured at a fixed time, that is too fine for
-//!   large images (lego 400^2, 300 s: 29.7 dB at 1 voxel/px against 31.4 at 0.6, which takes
-//!   2.4x the steps): the resolution should also follow the time budget (open, issue 19).
+//!   until its bricks fit the memory budget; the dense first stage, at half that resolution,
+//!   may take only a quarter of the budget (`SetupConfig::first_stage_share`). When it could
+//!   take all of it, large images left the finest stage no room: lego 400^2 in 300 s 29.7 dB,
+//!   now 31.8; 800^2 in 20 min 30.8, now 31.9; the ring's scene field 27.2 -> 29.6 dB in 150 s;
+//!   each with less memory (examples/results/field.md, "The first stage's share").
 //! - **Deterministic multi-threading**: fixed 256-ray chunks with per-ray seeded randomness write
 //!   gradient records bucketed by z-slab; each slab sums its records in chunk order. No atomics,
 //!   no per-thread dense gradient copies, and the same grid for a seed at any thread count.
