@@ -14,9 +14,10 @@
 //! weight), FIELD_STEP (sample spacing in voxels), FIELD_STAGES ("0:0.5,0.3:1": fraction of the
 //! schedule and grid scale), FIELD_PRUNE (steps between occupancy updates), FIELD_TV
 //! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
-//! FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may take), FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL,
-//! FIELD_ALPHA_INIT, FIELD_SEED, FIELD_NET ("features,hidden": colour network), FIELD_LR_NET; FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN and FIELD_SPARSE
-//! apply to `demo` too.
+//! FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may take),
+//! FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT, FIELD_SEED,
+//! FIELD_NET ("features,hidden": colour network), FIELD_LR_NET; FIELD_LR, FIELD_LR_FINAL,
+//! FIELD_SEED, FIELD_RUN and FIELD_SPARSE apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
