@@ -10,8 +10,10 @@ pub struct TrainConfig {
     /// Rays per step.
     pub batch: usize,
     /// The batch is drawn in runs of this many neighbouring pixels of a row
-    /// ([`RaySet::draw_runs`](crate::field::rays::RaySet::draw_runs); 1: every ray drawn on its own, the default; 0: [`AUTO_RAY_RUN`]
+    /// ([`RaySet::draw_runs`]; 1: every ray drawn on its own, the default; 0: [`AUTO_RAY_RUN`]
     /// while the grid's parameters outgrow the cache, else 1).
+    ///
+    /// [`RaySet::draw_runs`]: crate::field::rays::RaySet::draw_runs
     pub ray_run: usize,
     /// Most steps; the learning rates decay over this many.
     pub steps: usize,
@@ -36,15 +38,21 @@ pub struct TrainConfig {
     /// and how many rays with a depth target are added to each batch.
     pub depth_weight: f32,
     pub depth_batch: usize,
-    /// Rays drawn a step from [`RaySet::focus`](crate::field::rays::RaySet::focus) when it holds any.
+    /// Rays drawn a step from [`RaySet::focus`] when it holds any.
+    ///
+    /// [`RaySet::focus`]: crate::field::rays::RaySet::focus
     pub focus_batch: usize,
-    /// Weight of the distortion loss ([`distortion`](crate::field::render::distortion), distances in finest voxels) per ray.
+    /// Weight of the distortion loss ([`distortion`], distances in finest voxels) per ray.
+    ///
+    /// [`distortion`]: crate::field::render::distortion
     pub distortion_weight: f32,
     /// Weight of the sparsity loss per ray (the sum of its kept samples' alphas,
-    /// [`RayGrad::alpha_each`](crate::field::render::RayGrad::alpha_each)): of two ways to explain a view, the one with less matter seen.
+    /// [`RayGrad::alpha_each`]): of two ways to explain a view, the one with less matter seen.
     /// Off by default: at 3e-4 it takes the membrane out of the demo mug's cup (mesh Chamfer
     /// 1.72 -> 1.27%) but costs the demo objects 0.2-0.7 dB held out, and applied for the
     /// first half of training only the membrane grows back (examples/results/field.md).
+    ///
+    /// [`RayGrad::alpha_each`]: crate::field::render::RayGrad::alpha_each
     pub sparsity_weight: f32,
     /// Coarse-to-fine: (fraction of `steps`, grid scale per axis), scales rising to 1.
     pub stages: Vec<(f32, f32)>,
