@@ -202,7 +202,8 @@ fn opaque_extent(f: &objnerf::field::Field) -> (DVec3, DVec3) {
                 .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
             v != u32::MAX
                 && 1.0
-                    - (-objnerf::field::model::softplus(f.grid.data[v as usize * ch] + shift)).exp()
+                    - (-objnerf::field::activation::softplus(f.grid.data[v as usize * ch] + shift))
+                        .exp()
                     >= 0.5
         });
         if dense {

@@ -484,9 +484,9 @@ mod tests {
             .unwrap();
         assert!((14..=15).contains(&f.grid.vertex_coords(densest)[2]));
         let v = f.grid.vertex(densest as usize);
-        let alpha = 1.0 - (-crate::field::model::softplus(v[0] + f.shift())).exp();
+        let alpha = 1.0 - (-crate::field::activation::softplus(v[0] + f.shift())).exp();
         assert!(alpha > 0.25, "seeded opaque: alpha {alpha}");
-        let red = crate::field::model::sigmoid(0.282_094_8 * v[1]);
+        let red = crate::field::activation::sigmoid(0.282_094_8 * v[1]);
         assert!(
             (red - 200.0 / 255.0).abs() < 0.01,
             "seeded with the fill's colour: {red}"

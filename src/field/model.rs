@@ -7,6 +7,7 @@
 //! `delta` is the sample spacing measured in units of the finest voxel, so a raw value keeps its
 //! meaning when the grid is refined.
 
+use super::activation::sigmoid;
 use super::colour_net::ColourNet;
 use super::grid::{Grid, BRICK, BRICK_VERTICES, NONE};
 use super::space::Space;
@@ -78,8 +79,6 @@ pub fn sh_basis(degree: u32, d: Vec3, out: &mut [f32; 9]) {
         out[8] = C2[4] * (x * x - y * y);
     }
 }
-
-pub use super::activation::{sigmoid, softplus};
 
 /// The most channels a vertex holds (density and colour): the size of the renderer's
 /// per-sample buffers (SH degree 2: 28; a colour network's features are bounded by it too).
@@ -487,6 +486,7 @@ fn mark_corner_bricks(need: &mut [bool], bd: [usize; 3], c: [usize; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::activation::softplus;
 
     /// A field over the unit cube, alpha_init 0.01.
     fn unit_cube_field(sh_degree: u32, dims: [usize; 3]) -> Field {

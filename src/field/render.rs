@@ -13,9 +13,10 @@
 // Index loops over the 3 colour channels read as the maths does; iterators would obscure it.
 #![allow(clippy::needless_range_loop)]
 
+use super::activation::{sigmoid, softplus};
 use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
 use super::grid::BRICK;
-use super::model::{sh_basis, sigmoid, softplus, Field, MAX_CHANNELS};
+use super::model::{sh_basis, Field, MAX_CHANNELS};
 use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 

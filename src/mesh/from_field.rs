@@ -134,7 +134,7 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
         if raw <= EMPTY {
             continue;
         }
-        let alpha = 1.0 - (-crate::field::model::softplus(raw + shift) * delta).exp();
+        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
         let w = trans * alpha;
         if w > 0.0 {
             let c = color_at(field, q, &basis);
@@ -208,7 +208,7 @@ pub fn mesh_field(
         let max_alpha = if max <= EMPTY {
             0.0
         } else {
-            1.0 - (-crate::field::model::softplus(max + field.shift())).exp()
+            1.0 - (-crate::field::activation::softplus(max + field.shift())).exp()
         };
         return Err(Error::invalid(format!(
             "the field is empty at iso-level {}: its most opaque voxel reaches alpha {max_alpha:.4}; \
