@@ -33,7 +33,8 @@ pub struct TrainCmd {
     /// Train on images downscaled by this factor (box filter).
     #[arg(long, default_value_t = FitOptions::default().downscale)]
     downscale: u32,
-    /// Stop after this many seconds of training.
+    /// Train for this many seconds: without --steps the schedule follows the time and training
+    /// runs to the end of it; with --steps it stops at whichever comes first.
     #[arg(long)]
     time_budget: Option<f64>,
     /// Depth supervision: sparse (the sparse 3D points), spread (their depths spread over each
@@ -45,9 +46,11 @@ pub struct TrainCmd {
     depth: Option<DepthMode>,
     #[arg(long, default_value_t = FitOptions::default().seed)]
     seed: u64,
-    /// Most optimisation steps (the learning-rate schedule spans them).
-    #[arg(long, default_value_t = FitOptions::default().steps)]
-    steps: usize,
+    /// Most optimisation steps (the learning-rate schedule spans them); unless it trains for a
+    /// whole --time-budget, training also stops when the batch PSNR stops rising. Default: 20 000, or as many as the
+    /// --time-budget allows.
+    #[arg(long)]
+    steps: Option<usize>,
     /// Spherical-harmonic degree of the colour (0-2).
     #[arg(long, default_value_t = SetupConfig::default().sh_degree)]
     sh_degree: u32,
@@ -87,7 +90,8 @@ impl TrainCmd {
                 FitOptions::default().depth
             }),
             seed: self.seed,
-            steps: self.steps,
+            steps: self.steps.unwrap_or(FitOptions::default().steps),
+            whole_budget: self.steps.is_none(),
             setup: SetupConfig {
                 sh_degree: self.sh_degree.min(2),
                 net_features: self.colour_net,
@@ -104,9 +108,24 @@ impl TrainCmd {
             mask_band: self.mask_band,
         };
         let bars = Bars::default();
-        bars.begin("train", opts.steps as u64);
-        let mut progress =
-            |s: &objnerf::field::train::StepStats| bars.advance(s.step as u64, s.detail());
+        // Training for the whole budget, the bar counts seconds (the steps are not known).
+        let seconds = opts.time_budget.filter(|_| opts.whole_budget);
+        bars.begin(
+            if seconds.is_some() {
+                "train (s)"
+            } else {
+                "train"
+            },
+            seconds.map_or(opts.steps as u64, |s| s.ceil() as u64),
+        );
+        let mut progress = |s: &objnerf::field::train::StepStats| {
+            let done = if seconds.is_some() {
+                s.seconds as u64
+            } else {
+                s.step as u64
+            };
+            bars.advance(done, s.detail())
+        };
         let fitted = match &self.masks {
             Some(masks) => {
                 let masks = MaskSource::parse(masks, &self.scene)?;

@@ -58,6 +58,9 @@ pub struct FitOptions {
     pub seed: u64,
     /// Most optimisation steps (the learning-rate schedule spans them).
     pub steps: usize,
+    /// Train for the whole `time_budget`: no step cap (the schedule follows the time instead
+    /// of `steps`) and no plateau stop. No effect without a budget.
+    pub whole_budget: bool,
     pub setup: SetupConfig,
     /// Views left out of training (e.g. the ones segmentation found obstructed, or held out).
     pub exclude_views: Vec<String>,
@@ -75,10 +78,40 @@ impl Default for FitOptions {
             depth: DepthMode::None,
             seed: 0,
             steps: TrainConfig::default().steps,
+            whole_budget: false,
             setup: SetupConfig::default(),
             exclude_views: vec![],
             mask_band: 2,
         }
+    }
+}
+
+/// Steps the schedule spans when a run trains for its whole budget: more than any budget
+/// reaches, so the schedule follows the time.
+const UNCAPPED_STEPS: usize = 100_000_000;
+
+impl FitOptions {
+    fn trains_whole_budget(&self) -> bool {
+        self.whole_budget && self.time_budget.is_some()
+    }
+
+    /// The steps the schedule spans ([`FitOptions::whole_budget`]: uncapped).
+    pub fn schedule_steps(&self) -> usize {
+        if self.trains_whole_budget() {
+            UNCAPPED_STEPS
+        } else {
+            self.steps
+        }
+    }
+
+    /// When training stops: the budget, the steps, or (unless it trains for the whole budget)
+    /// a plateau.
+    pub fn stop_rule(&self) -> StopRule {
+        let mut stop = StopRule::for_budget(self.time_budget);
+        if self.trains_whole_budget() {
+            stop.plateau_db = None;
+        }
+        stop
     }
 }
 
@@ -130,7 +163,7 @@ pub fn fit_scene(
     }
     let cfg = TrainConfig {
         seed: opts.seed,
-        steps: opts.steps,
+        steps: opts.schedule_steps(),
         ..Default::default()
     };
     let (mut trainer, rays, setup) = match resume {
@@ -145,7 +178,7 @@ pub fn fit_scene(
             (t, rays, None)
         }
     };
-    let stop = StopRule::for_budget(opts.time_budget);
+    let stop = opts.stop_rule();
     let summary = run(&mut trainer, &views, &rays, &stop, progress);
     let report = TrainReport {
         setup,
@@ -281,7 +314,7 @@ pub fn fit_scene_field(
     progress: &mut dyn FnMut(&StepStats),
 ) -> Result<Fitted> {
     let mut fit = SceneFit::new(scene, opts)?;
-    fit.train(&StopRule::for_budget(opts.fit.time_budget), progress);
+    fit.train(&opts.fit.stop_rule(), progress);
     fit.check_fit(SCENE_FIT_VIEWS);
     Ok(fit.finish())
 }
@@ -326,7 +359,7 @@ impl SceneFit {
         let depth_targets = depth_and_training_views(&mut views, scene, fit)?;
         let cfg = TrainConfig {
             seed: fit.seed,
-            steps: fit.steps,
+            steps: fit.schedule_steps(),
             prune_after: opts.prune_after,
             carve_weight: opts.carve_weight,
             stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
@@ -456,4 +489,33 @@ pub fn model_notes(
         "depth": opts.depth,
         "depth_targets": report.depth_targets,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_whole_budget_lifts_the_step_cap_and_the_plateau_stop() {
+        let capped = FitOptions {
+            time_budget: Some(60.0),
+            ..Default::default()
+        };
+        assert_eq!(capped.schedule_steps(), capped.steps);
+        assert!(capped.stop_rule().plateau_db.is_some());
+        let whole = FitOptions {
+            whole_budget: true,
+            ..capped.clone()
+        };
+        assert!(whole.schedule_steps() > 1000 * whole.steps);
+        assert!(whole.stop_rule().plateau_db.is_none());
+        assert_eq!(whole.stop_rule().time_budget, Some(60.0));
+        // Without a budget there is nothing to fill: the steps and the plateau stop as before.
+        let no_budget = FitOptions {
+            time_budget: None,
+            ..whole
+        };
+        assert_eq!(no_budget.schedule_steps(), no_budget.steps);
+        assert!(no_budget.stop_rule().plateau_db.is_some());
+    }
 }
