@@ -16,8 +16,9 @@
 //! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
 //! FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may take),
 //! FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT, FIELD_SEED,
-//! FIELD_NET ("features,hidden": colour network), FIELD_LR_NET; FIELD_LR, FIELD_LR_FINAL,
-//! FIELD_SEED, FIELD_RUN and FIELD_SPARSE apply to `demo` too.
+//! FIELD_NET ("features,hidden": colour network), FIELD_LR_NET, FIELD_PRUNE_ALPHA (cells less
+//! opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
+//! FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -37,7 +38,7 @@ fn pair(name: &str) -> Option<(f32, f32)> {
 }
 
 /// The overrides both benchmarks take: FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
-/// FIELD_SPARSE.
+/// FIELD_SPARSE, FIELD_PRUNE_ALPHA.
 fn optimiser_overrides(cfg: &mut TrainConfig) {
     if let Some((a, b)) = pair("FIELD_LR") {
         (cfg.lr_density, cfg.lr_color) = (a, b);
@@ -53,6 +54,9 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
     }
     if let Some(v) = env("FIELD_SPARSE") {
         cfg.sparsity_weight = v;
+    }
+    if let Some(v) = env("FIELD_PRUNE_ALPHA") {
+        cfg.prune_alpha = v;
     }
 }
 
@@ -128,7 +132,12 @@ fn main() -> objnerf::Result<()> {
     let ds: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(4);
     let secs: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(120.0);
     let degree: u32 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1);
-    let steps: usize = args.get(5).and_then(|s| s.parse().ok()).unwrap_or(100_000);
+    // No step cap by default: the schedule follows the time budget (as `objnerf train
+    // --time-budget` without `--steps`).
+    let steps: usize = args
+        .get(5)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(field::fit::UNCAPPED_STEPS);
     let t0 = std::time::Instant::now();
     let train = objnerf::Scene::load(&dir.join("transforms_train.json"))?;
     let test = objnerf::Scene::load(&dir.join("transforms_test.json"))?;

@@ -358,10 +358,10 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
     let panels = panels.map(|mut p| {
         let span = p.y.end - p.y.start;
         if p.y.start < 0.3 * span {
-            p.y = p.y.start.max(0.0)..p.y.end + 0.8 * span;
+            p.y = p.y.start.max(0.0)..p.y.end + 1.3 * span;
             p.legend = SeriesLabelPosition::UpperLeft;
         } else {
-            p.y = p.y.start - 0.8 * span..p.y.end;
+            p.y = p.y.start - 1.3 * span..p.y.end;
         }
         p
     });

@@ -88,7 +88,7 @@ impl Default for FitOptions {
 
 /// Steps the schedule spans when a run trains for its whole budget: more than any budget
 /// reaches, so the schedule follows the time.
-const UNCAPPED_STEPS: usize = 100_000_000;
+pub const UNCAPPED_STEPS: usize = 100_000_000;
 
 impl FitOptions {
     fn trains_whole_budget(&self) -> bool {
@@ -296,8 +296,9 @@ impl Default for SceneFitOptions {
             distortion_weight: 0.001,
             // Air starts at alpha_init and its density falls slowly; pruning what is not yet
             // 1% opaque per step keeps the grid near the surfaces (demo at 160x120, 2000 steps:
-            // the same held-out PSNR, 24.3 against 24.0 dB, in 60 instead of 113 CPU-s).
-            prune_alpha: 0.01,
+            // the same held-out PSNR, 24.3 against 24.0 dB, in 60 instead of 113 CPU-s). Object
+            // fields prune alike.
+            prune_alpha: TrainConfig::default().prune_alpha,
         }
     }
 }
