@@ -47,8 +47,8 @@ pub struct TrainCmd {
     #[arg(long, default_value_t = FitOptions::default().seed)]
     seed: u64,
     /// Most optimisation steps (the learning-rate schedule spans them); unless it trains for a
-    /// whole --time-budget, training also stops when the batch PSNR stops rising. Default: 20 000, or as many as the
-    /// --time-budget allows.
+    /// whole --time-budget, training also stops when the batch PSNR stops rising. Default:
+    /// 20 000, or as many as the --time-budget allows.
     #[arg(long)]
     steps: Option<usize>,
     /// Spherical-harmonic degree of the colour (0-2).
