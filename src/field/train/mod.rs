@@ -30,6 +30,10 @@ use step::{StepContext, CHUNK};
 /// this to 1 minus this: a shell around the surfaces, not the fog in front of them.
 const CARVE_BAND: f32 = 0.02;
 
+/// Slabs per thread for the gradient's sum and the optimiser's step (more balance the threads'
+/// work; each adds a record list per chunk and duplicates the records of cells on its border).
+const SLABS_PER_THREAD: usize = 4;
+
 /// Optimiser state and the buffers of one training run.
 pub struct Trainer {
     pub field: Field,
@@ -358,7 +362,7 @@ impl Trainer {
             inv_b: 1.0 / picks.len() as f32,
             plane: field.grid.dims[0] * field.grid.dims[1],
             nslabs: slabs.count(),
-            layers_per_slab: slabs.layers_per_slab,
+            slab_of_layer: &slabs.slab_of_layer,
         };
         let net_len = field.net.as_ref().map_or(0, |n| n.weights.len());
         self.net_grads.resize_with(nchunks, Vec::new);
@@ -401,21 +405,32 @@ impl Trainer {
         }
     }
 
-    /// The grid's z-slabs: ranges of brick layers, each a contiguous range of slots, about two
-    /// per thread; each thread sums and applies the gradient of its own slab. The split depends
-    /// on the thread count, which does not change the sums (see the module notes).
+    /// The grid's z-slabs: ranges of brick layers, each a contiguous range of slots, a few per
+    /// thread, cut where the allocated bricks split evenly (a step touches vertices about where
+    /// they are allocated: layers of equal count left one thread idle while the other finished
+    /// the base plate's slab). Each thread sums and applies the gradient of its own slabs; the
+    /// split depends on the thread count and the bricks, neither of which changes the sums (see
+    /// the module notes).
     fn slabs(&self) -> Slabs {
         let grid = &self.field.grid;
         let layers = grid.brick_dims[2];
-        let want = (rayon::current_num_threads() * 2).clamp(1, layers);
-        let layers_per_slab = layers.div_ceil(want);
         let starts = grid.layer_starts();
-        let bounds = (0..=layers.div_ceil(layers_per_slab))
-            .map(|i| starts[(i * layers_per_slab).min(layers)] * BRICK_VERTICES)
-            .collect();
+        let total = starts[layers];
+        let want = (rayon::current_num_threads() * SLABS_PER_THREAD).clamp(1, layers.max(1));
+        let mut slab_of_layer = Vec::with_capacity(layers);
+        let mut cuts = vec![0usize];
+        for z in 0..layers {
+            let next = cuts.len();
+            if next < want && starts[z] * want >= next * total && starts[z] > *cuts.last().unwrap()
+            {
+                cuts.push(starts[z]);
+            }
+            slab_of_layer.push((cuts.len() - 1) as u32);
+        }
+        cuts.push(total);
         Slabs {
-            layers_per_slab,
-            bounds,
+            slab_of_layer,
+            bounds: cuts.into_iter().map(|b| b * BRICK_VERTICES).collect(),
         }
     }
 

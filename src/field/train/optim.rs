@@ -193,10 +193,10 @@ impl SlabScatter<'_> {
     }
 }
 
-/// The grid's slabs for one step: brick layers per slab, and each slab's first vertex (slot
-/// index; the last entry is one past the end).
+/// The grid's slabs for one step: the slab of each brick layer, and each slab's first vertex
+/// (slot index; the last entry is one past the end).
 pub(super) struct Slabs {
-    pub(super) layers_per_slab: usize,
+    pub(super) slab_of_layer: Vec<u32>,
     pub(super) bounds: Vec<usize>,
 }
 

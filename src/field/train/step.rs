@@ -26,7 +26,7 @@ pub(super) struct StepContext<'a> {
     /// bucketed by.
     pub(super) plane: usize,
     pub(super) nslabs: usize,
-    pub(super) layers_per_slab: usize,
+    pub(super) slab_of_layer: &'a [u32],
 }
 
 /// One ray's loss and the gradients it hands the backward pass.
@@ -89,7 +89,8 @@ impl StepContext<'_> {
                 let kept: f32 = samples.iter().map(|s| s.alpha).sum();
                 loss += (cfg.sparsity_weight * kept) as f64;
             }
-            let (plane, nslabs, per) = (self.plane, self.nslabs, self.layers_per_slab);
+            let (plane, slab_of) = (self.plane, self.slab_of_layer);
+            let last = slab_of.len() - 1;
             backward(
                 field,
                 &cfg.render,
@@ -108,8 +109,8 @@ impl StepContext<'_> {
                     // The cell's corners lie in brick layers z / BRICK and (z + 1) / BRICK.
                     let z = s.base as usize / plane;
                     let (sa, sb) = (
-                        (z / BRICK / per).min(nslabs - 1),
-                        ((z + 1) / BRICK / per).min(nslabs - 1),
+                        slab_of[(z / BRICK).min(last)] as usize,
+                        slab_of[((z + 1) / BRICK).min(last)] as usize,
                     );
                     for b in &mut rec[sa..=sb] {
                         b.push(f32::from_bits(s.base));
