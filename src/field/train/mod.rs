@@ -419,11 +419,10 @@ impl Trainer {
         let want = (rayon::current_num_threads() * SLABS_PER_THREAD).clamp(1, layers.max(1));
         let mut slab_of_layer = Vec::with_capacity(layers);
         let mut cuts = vec![0usize];
-        for z in 0..layers {
+        for &start in &starts[..layers] {
             let next = cuts.len();
-            if next < want && starts[z] * want >= next * total && starts[z] > *cuts.last().unwrap()
-            {
-                cuts.push(starts[z]);
+            if next < want && start * want >= next * total && start > *cuts.last().unwrap() {
+                cuts.push(start);
             }
             slab_of_layer.push((cuts.len() - 1) as u32);
         }
