@@ -16,9 +16,9 @@
 //! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
 //! FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may take),
 //! FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT, FIELD_SEED,
-//! FIELD_NET ("features,hidden": colour network), FIELD_LR_NET, FIELD_PRUNE_ALPHA (cells less
-//! opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
-//! FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
+//! FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH), FIELD_LR_NET,
+//! FIELD_PRUNE_ALPHA (cells less opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL,
+//! FIELD_SEED, FIELD_RUN, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -60,11 +60,12 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
     }
 }
 
-/// The colour overrides both benchmarks take: FIELD_NET ("features,hidden"; "0,0": SH colour)
-/// and FIELD_LR_NET.
+/// The colour overrides both benchmarks take: FIELD_NET ("features,hidden"; "0,0": SH colour;
+/// either at any number of views) and FIELD_LR_NET.
 fn net_overrides(setup: &mut SetupConfig, cfg: &mut TrainConfig) {
     if let Some((f, h)) = pair("FIELD_NET") {
         (setup.net_features, setup.net_hidden) = (f as usize, h as usize);
+        setup.net_min_views = 0;
     }
     if let Some(v) = env("FIELD_LR_NET") {
         cfg.lr_net = v;

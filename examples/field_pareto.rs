@@ -44,11 +44,11 @@ const SIZES: &[(&str, u32, f64, f32, bool)] = &[
     ("400^2", 2, 300.0, 0.6, false),
     ("800^2", 1, 1200.0, 0.4, false),
 ];
-/// The colour sweep: (label, SH degree, FIELD_NET "features,hidden" or "" for SH colour,
+/// The colour sweep: (label, SH degree, FIELD_NET "features,hidden" ("0,0": SH colour),
 /// FIELD_VPP, lego budgets in seconds).
 const COLOURS: &[(&str, u32, &str, f32, &[f64])] = &[
-    ("SH 1", 1, "", 1.0, &[60.0, 300.0]),
-    ("SH 2", 2, "", 1.0, &[60.0]),
+    ("SH 1", 1, "0,0", 1.0, &[60.0, 300.0]),
+    ("SH 2", 2, "0,0", 1.0, &[60.0]),
     ("net 8x32", 1, "8,32", 1.0, &[60.0, 300.0]),
     ("net 8x32, 1.3 voxel/px", 1, "8,32", 1.3, &[300.0]),
 ];
@@ -381,11 +381,10 @@ fn colours(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
     }
     let scale = if quick { 0.05 } else { 1.0 };
     let env_of = |net: &str, vpp: f32| {
-        let mut env = vec![("FIELD_VPP", vpp.to_string())];
-        if !net.is_empty() {
-            env.push(("FIELD_NET", net.to_string()));
-        }
-        env
+        vec![
+            ("FIELD_VPP", vpp.to_string()),
+            ("FIELD_NET", net.to_string()),
+        ]
     };
     let start = std::time::Instant::now();
     let load_before = loadavg();

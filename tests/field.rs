@@ -49,6 +49,7 @@ fn net_setup() -> SetupConfig {
     SetupConfig {
         net_features: 8,
         net_hidden: 32,
+        net_min_views: 0,
         ..Default::default()
     }
 }
@@ -166,6 +167,18 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
         .err()
         .expect("an error");
     assert!(e.to_string().contains("features"), "{e}");
+    // The colour follows the number of views: SH under `net_min_views`, and the report says why.
+    let at_least = |n: usize| SetupConfig {
+        net_min_views: n,
+        ..net_setup()
+    };
+    let (t, _, report) =
+        field::prepare(&views, &[], &at_least(views.len() + 1), small_cfg(1)).expect("SH colour");
+    assert!(t.field.net.is_none() && t.field.grid.channels == 13);
+    assert!(report.why.contains("fewer than"), "{}", report.why);
+    let (t, _, _) =
+        field::prepare(&views, &[], &at_least(views.len()), small_cfg(1)).expect("a network");
+    assert!(t.field.net.is_some());
 }
 
 fn small_model_file(dir: &Path) -> std::path::PathBuf {

@@ -45,9 +45,9 @@ pub struct ExtractCmd {
     pub depth: DepthMode,
     #[arg(long, default_value_t = ExtractOptions::default().fit.seed)]
     pub seed: u64,
-    /// Colour from this many features per vertex through a small network instead of SH
-    /// coefficients (0; see `objnerf train --help`).
-    #[arg(long, default_value_t = 0)]
+    /// Colour from this many features per vertex through a small network where the object
+    /// has enough views (0: SH always; see `objnerf train --help`).
+    #[arg(long, default_value_t = objnerf::field::SetupConfig::default().net_features)]
     pub colour_net: usize,
     /// Marching-cubes samples along the box's longest side (default: the field's grid).
     #[arg(long)]
@@ -179,9 +179,9 @@ pub struct DemoCmd {
     /// Most training steps.
     #[arg(long, default_value_t = demo_options().fit.steps)]
     pub steps: usize,
-    /// Colour from this many features per vertex through a small network instead of SH
-    /// coefficients (0; see `objnerf train --help`).
-    #[arg(long, default_value_t = 0)]
+    /// Colour from this many features per vertex through a small network where the object
+    /// has enough views (0: SH always; see `objnerf train --help`).
+    #[arg(long, default_value_t = objnerf::field::SetupConfig::default().net_features)]
     pub colour_net: usize,
 }
 

@@ -20,14 +20,15 @@
 //! - **One vertex grid, all channels of a vertex together** (`[raw density, SH r, SH g, SH b]`,
 //!   13 floats at SH degree 1): a sample's trilinear gather and its gradient scatter each touch 8
 //!   short contiguous runs.
-//! - **Colour: SH degree 1 on the grid by default; a feature grid + small network
-//!   ([`colour_net`]) as an option.** Within the same wall-clock budget on lego, degree 1 beats
-//!   degree 0 (less view-dependent colour) and degree 2 (28 floats per vertex: slower steps, a
-//!   coarser grid in the memory budget). The network (8 features per vertex, 32 hidden units,
-//!   colour only where a sample's weight reaches 3e-3, DVGO's fast_color_thres) fits lego sooner
-//!   with less memory (200^2: +0.75 dB at 60 s, equal at 300 s; 800^2: +0.6 dB in 20 min) but
-//!   scores 0.9 dB below SH 1 on the demo's textured sphere and 0.24 dB below on fox, so it is
-//!   not the default (`examples/results/field.md`, "Colour", and `field_colours.{json,svg}`).
+//! - **Colour by view count: a feature grid + small network ([`colour_net`]) for an object
+//!   seen from at least 80 views, SH degree 1 on the grid below that (and for scene fields)**
+//!   (`SetupConfig::net_min_views`). The network (8 features per vertex, 32 hidden units, colour
+//!   only where a sample's weight reaches 3e-3, DVGO's fast_color_thres) fits lego better with
+//!   less memory (+0.5 dB at 400^2 in 300 s, +0.6 at 800^2 in 20 min; equal at 200^2), but its
+//!   view dependence does not hold between few views: 0.9 dB below SH 1 on the demo's sphere
+//!   (30 views) and 0.24 below on fox (42). Degree 1 beats degree 0 (less view-dependent colour)
+//!   and degree 2 (28 floats per vertex: slower steps, a coarser grid in the memory budget)
+//!   (`examples/results/field.md`, "Colour" and "Colour by view count").
 //! - **Density post-activated** as DVGO: interpolate the raw value, then softplus and alpha, so a
 //!   cell can hold a sharp surface; `delta` is in finest-voxel units so coarse-to-fine growth keeps
 //!   densities meaningful.

@@ -23,6 +23,12 @@ pub struct SetupConfig {
     /// coefficients on the grid.
     pub net_features: usize,
     pub net_hidden: usize,
+    /// An object field trained on fewer views than this takes SH colour whatever
+    /// `net_features` says: the network's view dependence needs many views to hold between
+    /// them. Lego (100 views) gains 0.5-0.6 dB held out at 400^2 and 800^2 from it; the demo
+    /// sphere (30 views) loses 0.9 dB and fox's head (42) 0.24 (examples/results/field.md,
+    /// "Colour by view count"). Scene fields always take SH.
+    pub net_min_views: usize,
     /// Voxels per pixel footprint at the median viewing distance.
     pub voxels_per_pixel: f32,
     /// Bytes for the grid and its optimiser state.
@@ -62,6 +68,24 @@ impl SetupConfig {
         Ok(())
     }
 
+    /// These settings for an object trained on `views` views: SH colour under
+    /// `net_min_views`.
+    pub fn for_views(&self, views: usize) -> SetupConfig {
+        let mut s = self.clone();
+        if views < self.net_min_views {
+            s.net_features = 0;
+        }
+        s
+    }
+
+    /// What colours the field, for its report.
+    pub fn colour(&self) -> String {
+        match self.net_features {
+            0 => format!("SH degree {}", self.sh_degree),
+            f => format!("network: {f} features, {} hidden units", self.net_hidden),
+        }
+    }
+
     /// Grid channels per vertex: density and the colour's.
     pub fn channels(&self) -> usize {
         match self.net_features {
@@ -75,8 +99,9 @@ impl Default for SetupConfig {
     fn default() -> Self {
         SetupConfig {
             sh_degree: 1,
-            net_features: 0,
+            net_features: 8,
             net_hidden: 32,
+            net_min_views: 80,
             voxels_per_pixel: 1.0,
             memory_budget: 1 << 30,
             first_stage_share: 0.25,
@@ -114,9 +139,19 @@ pub fn prepare(
     cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
+    let setup = &setup.for_views(views.len());
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
-    let why = format!("{box_why}; {why}");
+    let colour = match setup.net_features {
+        0 if views.len() < setup.net_min_views => format!(
+            "{} ({} views, fewer than the {} a colour network needs)",
+            setup.colour(),
+            views.len(),
+            setup.net_min_views
+        ),
+        _ => format!("{} ({} views)", setup.colour(), views.len()),
+    };
+    let why = format!("{box_why}; {why}; colour: {colour}");
     let plan = GridPlan::new(lo, hi, footprint, why, setup, &cfg);
     let mut field = plan.field(setup, Space::Box, &cfg);
     let dims0 = field.grid.dims;
@@ -146,6 +181,10 @@ pub fn prepare_scene(
     seeds: &[(Vec3, [u8; 3])],
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
+    let setup = &SetupConfig {
+        net_features: 0,
+        ..setup.clone()
+    };
     let why = format!(
         "{}; one pixel covers {:.5} space units",
         space.why, space.pixel_footprint

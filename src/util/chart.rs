@@ -94,10 +94,15 @@ impl Panel {
     }
 }
 
-/// The colour of the `i`th series of a chart (plotters' 99-colour palette).
+/// The colour of the `i`th series of a chart (plotters' 99-colour palette), its pale colours
+/// darkened so a point shows on white (pale yellow was invisible).
 pub fn palette(i: usize) -> RGBColor {
+    const MOST_LUMA: f32 = 170.0;
     let (r, g, b) = Palette99::pick(i).rgb();
-    RGBColor(r, g, b)
+    let luma = 0.299 * r as f32 + 0.587 * g as f32 + 0.114 * b as f32;
+    let k = (MOST_LUMA / luma).min(1.0);
+    let dim = |c: u8| (c as f32 * k).round() as u8;
+    RGBColor(dim(r), dim(g), dim(b))
 }
 
 /// An SVG of `size` pixels with `panels` laid out in `rows` rows (filled row by row).
