@@ -68,18 +68,25 @@ impl SetupConfig {
         Ok(())
     }
 
-    /// These settings for an object trained on `views` views: SH colour under
-    /// `net_min_views`.
-    pub fn for_views(&self, views: usize) -> SetupConfig {
+    /// These settings for an object trained on `views` views (SH colour under
+    /// `net_min_views`), and what colours it, for its report.
+    pub fn for_views(&self, views: usize) -> (SetupConfig, String) {
         let mut s = self.clone();
-        if views < self.net_min_views {
+        if self.net_features > 0 && views < self.net_min_views {
             s.net_features = 0;
+            let why = format!(
+                "{} ({views} views, fewer than the {} a colour network needs)",
+                s.colour(),
+                self.net_min_views
+            );
+            return (s, why);
         }
-        s
+        let why = format!("{} ({views} views)", s.colour());
+        (s, why)
     }
 
-    /// What colours the field, for its report.
-    pub fn colour(&self) -> String {
+    /// What colours the field.
+    fn colour(&self) -> String {
         match self.net_features {
             0 => format!("SH degree {}", self.sh_degree),
             f => format!("network: {f} features, {} hidden units", self.net_hidden),
@@ -139,18 +146,10 @@ pub fn prepare(
     cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
-    let setup = &setup.for_views(views.len());
+    let (setup, colour) = setup.for_views(views.len());
+    let setup = &setup;
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
-    let colour = match setup.net_features {
-        0 if views.len() < setup.net_min_views => format!(
-            "{} ({} views, fewer than the {} a colour network needs)",
-            setup.colour(),
-            views.len(),
-            setup.net_min_views
-        ),
-        _ => format!("{} ({} views)", setup.colour(), views.len()),
-    };
     let why = format!("{box_why}; {why}; colour: {colour}");
     let plan = GridPlan::new(lo, hi, footprint, why, setup, &cfg);
     let mut field = plan.field(setup, Space::Box, &cfg);
