@@ -172,6 +172,7 @@ fn main() -> objnerf::Result<()> {
             .filter_map(|p| p.split_once(':'))
             .filter_map(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
             .collect();
+        cfg.stages_when_capped = cfg.stages.clone();
     }
     if let Some(v) = env("FIELD_PRUNE") {
         cfg.prune_every = v;

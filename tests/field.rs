@@ -181,6 +181,52 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
     assert!(t.field.net.is_some());
 }
 
+/// When the memory budget makes the first (dense) stage coarser than the schedule asks, the
+/// schedule starts coarser, so the finest stage can reach more than twice its resolution; the
+/// report says so. With room, or with fewer views than `fine_min_views`, the schedule is the
+/// one asked for.
+#[test]
+fn a_budget_that_coarsens_the_first_stage_starts_the_schedule_coarser() {
+    let Some(views) = lego_views("train", 16, 10) else {
+        return;
+    };
+    let cfg = TrainConfig::default();
+    let tight = |fine_min_views: usize| SetupConfig {
+        memory_budget: 1 << 20,
+        fine_min_views,
+        ..Default::default()
+    };
+    let room = SetupConfig {
+        fine_min_views: 0,
+        ..Default::default()
+    };
+    for (setup, coarser) in [
+        (room, false),
+        (tight(views.len() + 1), false),
+        (tight(0), true),
+    ] {
+        let (t, _, report) = field::prepare(&views, &[], &setup, cfg.clone()).expect("a trainer");
+        let want = if coarser {
+            &cfg.stages_when_capped
+        } else {
+            &cfg.stages
+        };
+        assert_eq!(&t.cfg.stages, want, "budget {}", setup.memory_budget);
+        assert_eq!(
+            report.why.contains("the schedule is"),
+            coarser,
+            "{}",
+            report.why
+        );
+        let (first, finest) = (t.field.grid.dims[0] - 1, t.final_dims[0] - 1);
+        assert_eq!(
+            finest > 2 * first + 1,
+            coarser,
+            "first {first} cells, finest {finest}"
+        );
+    }
+}
+
 fn small_model_file(dir: &Path) -> std::path::PathBuf {
     let f = field::Field::new(
         field::FieldConfig {

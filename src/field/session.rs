@@ -29,6 +29,12 @@ pub struct SetupConfig {
     /// sphere (30 views) loses 0.9 dB and fox's head (42) 0.24 (examples/results/field.md,
     /// "Colour by view count"). Scene fields always take SH.
     pub net_min_views: usize,
+    /// An object field trained on fewer views keeps its schedule when the memory budget
+    /// coarsens the first stage ([`TrainConfig::stages_when_capped`] is not taken): a finer
+    /// finest grid holds between many views but overfits few. Lego (100 views) 800^2 in 20
+    /// min 32.96 -> 33.72 dB with it; fox's head (42 views) 21.55 -> 21.49 dB and 347 -> 584
+    /// MiB (examples/results/field.md, "A coarser start where the budget binds").
+    pub fine_min_views: usize,
     /// Voxels per pixel footprint at the median viewing distance.
     pub voxels_per_pixel: f32,
     /// Bytes for the grid and its optimiser state.
@@ -109,6 +115,7 @@ impl Default for SetupConfig {
             net_features: 8,
             net_hidden: 32,
             net_min_views: 80,
+            fine_min_views: 80,
             voxels_per_pixel: 1.0,
             memory_budget: 1 << 30,
             first_stage_share: 0.25,
@@ -143,15 +150,18 @@ pub fn prepare(
     views: &[View],
     points: &[Vec3],
     setup: &SetupConfig,
-    cfg: TrainConfig,
+    mut cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
     let (setup, colour) = setup.for_views(views.len());
     let setup = &setup;
+    if views.len() < setup.fine_min_views {
+        cfg.stages_when_capped = cfg.stages.clone();
+    }
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
     let why = format!("{box_why}; {why}; colour: {colour}");
-    let plan = GridPlan::new(lo, hi, footprint, why, setup, &cfg);
+    let plan = GridPlan::new(lo, hi, footprint, why, setup, &mut cfg);
     let mut field = plan.field(setup, Space::Box, &cfg);
     let dims0 = field.grid.dims;
     let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
@@ -176,7 +186,7 @@ pub fn prepare_scene(
     views: &[View],
     space: &SpaceSetup,
     setup: &SetupConfig,
-    cfg: TrainConfig,
+    mut cfg: TrainConfig,
     seeds: &[(Vec3, [u8; 3])],
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
@@ -194,7 +204,7 @@ pub fn prepare_scene(
         space.pixel_footprint,
         why,
         setup,
-        &cfg,
+        &mut cfg,
     );
     let mut field = plan.field(setup, space.space.clone(), &cfg);
     clear_near_cameras(&mut field, views, space.near_clip);
@@ -254,7 +264,9 @@ struct GridPlan {
 impl GridPlan {
     /// The finest voxel: `footprint / voxels_per_pixel`, made coarser only when the first stage
     /// (dense, at the schedule's first scale) would not fit its share of the memory budget
-    /// ([`SetupConfig::first_stage_share`]). The finest stage
+    /// ([`SetupConfig::first_stage_share`]). Then, if [`TrainConfig::stages_when_capped`]
+    /// starts coarser, the schedule becomes that one, so the finest stage is not held to the
+    /// first's resolution times the usual ratio. The finest stage
     /// is sparse: when it starts, the trainer fits its resolution to the budget by the bricks
     /// the occupied cells need ([`Trainer::budget`]).
     fn new(
@@ -263,22 +275,40 @@ impl GridPlan {
         footprint: f32,
         why: String,
         setup: &SetupConfig,
-        cfg: &TrainConfig,
+        cfg: &mut TrainConfig,
     ) -> Self {
         let bytes_per_vertex = setup.bytes_per_vertex();
-        let coarse = cfg.stages.first().map(|s| s.1).unwrap_or(1.0).min(1.0);
+        let first_scale = |st: &[(f32, f32)]| st.first().map(|s| s.1).unwrap_or(1.0).min(1.0);
         let target = footprint / setup.voxels_per_pixel;
-        let why = format!(
-            "{why}; {} voxel(s) per pixel -> voxel {target:.5}; the first stage at {coarse} of that resolution is dense, within {} of the memory",
-            setup.voxels_per_pixel, setup.first_stage_share
-        );
-        let (coarse_voxel, mut why) = fit_budget(
+        let share =
+            (setup.memory_budget as f64 * setup.first_stage_share.clamp(0.01, 1.0) as f64) as usize;
+        let mut coarse = first_scale(&cfg.stages);
+        let (fit, _) = fit_budget(
             hi - lo,
             target / coarse,
-            why,
+            String::new(),
             bytes_per_vertex,
-            (setup.memory_budget as f64 * setup.first_stage_share.clamp(0.01, 1.0) as f64) as usize,
+            share,
         );
+        let capped = fit > target / coarse;
+        let mut why = format!(
+            "{why}; {} voxel(s) per pixel -> voxel {target:.5}",
+            setup.voxels_per_pixel
+        );
+        if capped && first_scale(&cfg.stages_when_capped) < coarse {
+            cfg.stages = cfg.stages_when_capped.clone();
+            coarse = first_scale(&cfg.stages);
+            why += &format!(
+                "; the first stage does not fit its share of the memory at that resolution, so the schedule is {}",
+                cfg.stages.iter().map(|(at, s)| format!("{s} from {at}")).collect::<Vec<_>>().join(", ")
+            );
+        }
+        why += &format!(
+            "; the first stage at {coarse} of that resolution is dense, within {} of the memory",
+            setup.first_stage_share
+        );
+        let (coarse_voxel, mut why) =
+            fit_budget(hi - lo, target / coarse, why, bytes_per_vertex, share);
         let voxel = coarse_voxel * coarse;
         let e = hi - lo;
         let final_dims = [e.x, e.y, e.z].map(|l| ((l / voxel).ceil() as usize).div_ceil(4) * 4 + 1);
