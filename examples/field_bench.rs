@@ -9,16 +9,16 @@
 //! `examples/field_pareto.rs` runs a sweep of these (one process each, for peak RSS) and draws
 //! the chart.
 //!
-//! Environment overrides for sweeps: FIELD_BATCH, FIELD_RUN (pixels per run of neighbours a
-//! batch is drawn in; default 1; 0: runs of 8 on large grids), FIELD_SPARSE (sparsity loss
-//! weight), FIELD_STEP (sample spacing in voxels), FIELD_STAGES ("0:0.5,0.3:1": fraction of the
-//! schedule and grid scale), FIELD_PRUNE (steps between occupancy updates), FIELD_TV
-//! ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel footprint),
-//! FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may take),
-//! FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT, FIELD_SEED,
-//! FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH), FIELD_LR_NET,
-//! FIELD_PRUNE_ALPHA (cells less opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL,
-//! FIELD_SEED, FIELD_RUN, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
+//! Environment overrides for sweeps: FIELD_BATCH, FIELD_RUN (pixels per run of neighbours a batch
+//! is drawn in; default 1; 0: runs of 8 on large grids), FIELD_SPARSE (sparsity loss weight),
+//! FIELD_STEP (sample spacing in voxels), FIELD_STAGES ("0:0.5,0.3:1": fraction of the schedule and
+//! grid scale; taken whether or not the memory budget binds), FIELD_PRUNE (steps between occupancy
+//! updates), FIELD_TV ("density,colour"), FIELD_LR ("density,colour"), FIELD_VPP (voxels per pixel
+//! footprint), FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may
+//! take), FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT,
+//! FIELD_SEED, FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH),
+//! FIELD_LR_NET, FIELD_PRUNE_ALPHA (cells less opaque than this a step are pruned); FIELD_LR,
+//! FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;

@@ -353,19 +353,26 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
             layers(scatter_share),
         ),
     ];
-    // The legend (one entry a run kind) fills a corner: extend each y axis away from the
-    // points so it does not cover them (upwards for RSS, which starts near 0).
+    // The legend (one entry a run kind, ~15 px each) fills a corner: the chart is made tall
+    // enough for it and ~220 px of points, and each y axis is extended away from the points
+    // so the legend does not cover them.
+    let entries = panels.iter().map(|p| p.layers.len()).max().unwrap_or(0) as f64;
+    let legend_px = 15.0 * entries + 20.0;
+    let plot_px = legend_px + 220.0;
+    let height = (plot_px + 85.0) as u32;
     let panels = panels.map(|mut p| {
         let span = p.y.end - p.y.start;
-        if p.y.start < 0.3 * span {
-            p.y = p.y.start.max(0.0)..p.y.end + 1.3 * span;
+        let extra = span * legend_px / (plot_px - legend_px);
+        // Below the points unless that would show negative RSS or shares.
+        if p.y.start - extra < 0.0 {
+            p.y = p.y.start.max(0.0)..p.y.end + extra;
             p.legend = SeriesLabelPosition::UpperLeft;
         } else {
-            p.y = p.y.start - 1.3 * span..p.y.end;
+            p.y = p.y.start - extra..p.y.end;
         }
         p
     });
-    std::fs::write(path, svg((1500, 480), 1, &panels)?)?;
+    std::fs::write(path, svg((1500, height.max(480)), 1, &panels)?)?;
     Ok(())
 }
 

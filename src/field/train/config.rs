@@ -59,7 +59,7 @@ pub struct TrainConfig {
     /// The schedule instead of `stages` when the memory budget makes the first (dense) stage
     /// coarser than `stages` asks, if it starts coarser: with two stages the finest was held
     /// to twice the first's resolution, far from what the budget's bricks allow (lego 800^2
-    /// in 20 min: finest voxel 2.6 px, 32.96 dB; with this, 1.6 px and 33.72 dB).
+    /// in 20 min: finest voxel 2.3 px, 32.96 dB; with this, 1.6 px and 33.72 dB).
     pub stages_when_capped: Vec<(f32, f32)>,
     /// Re-derive the occupancy grid every this many steps...
     pub prune_every: usize,
