@@ -183,8 +183,8 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
 
 /// When the memory budget makes the first (dense) stage coarser than the schedule asks, the
 /// schedule starts coarser, so the finest stage can reach more than twice its resolution; the
-/// report says so. With room, or with fewer views than `fine_min_views`, the schedule is the
-/// one asked for.
+/// report says so. With room, or with fewer views than `fine_min_views` (the report says why),
+/// the schedule is the one asked for.
 #[test]
 fn a_budget_that_coarsens_the_first_stage_starts_the_schedule_coarser() {
     let Some(views) = lego_views("train", 16, 10) else {
@@ -215,6 +215,14 @@ fn a_budget_that_coarsens_the_first_stage_starts_the_schedule_coarser() {
         assert_eq!(
             report.why.contains("the schedule is"),
             coarser,
+            "{}",
+            report.why
+        );
+        // Capped with too few views: kept, and the report says why.
+        let kept = setup.memory_budget < 1 << 30 && !coarser;
+        assert_eq!(
+            report.why.contains("stays as asked"),
+            kept,
             "{}",
             report.why
         );

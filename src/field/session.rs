@@ -161,7 +161,14 @@ pub fn prepare(
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
     let why = format!("{box_why}; {why}; colour: {colour}");
-    let plan = GridPlan::new(lo, hi, footprint, why, setup, &mut cfg);
+    let mut plan = GridPlan::new(lo, hi, footprint, why, setup, &mut cfg);
+    if plan.capped && views.len() < setup.fine_min_views {
+        plan.why += &format!(
+            "; the schedule stays as asked ({} views, fewer than the {} a finer finest grid needs)",
+            views.len(),
+            setup.fine_min_views
+        );
+    }
     let mut field = plan.field(setup, Space::Box, &cfg);
     let dims0 = field.grid.dims;
     let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
@@ -259,6 +266,8 @@ struct GridPlan {
     voxel: f32,
     final_dims: [usize; 3],
     why: String,
+    /// Whether the memory budget coarsened the first stage.
+    capped: bool,
 }
 
 impl GridPlan {
@@ -336,6 +345,7 @@ impl GridPlan {
             voxel,
             final_dims,
             why,
+            capped,
         }
     }
 
