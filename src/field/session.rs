@@ -155,20 +155,17 @@ pub fn prepare(
     setup.check()?;
     let (setup, colour) = setup.for_views(views.len());
     let setup = &setup;
-    if views.len() < setup.fine_min_views {
-        cfg.stages_when_capped = cfg.stages.clone();
-    }
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
     let why = format!("{box_why}; {why}; colour: {colour}");
-    let mut plan = GridPlan::new(lo, hi, footprint, why, setup, &mut cfg);
-    if plan.capped && views.len() < setup.fine_min_views {
-        plan.why += &format!(
-            "; the schedule stays as asked ({} views, fewer than the {} a finer finest grid needs)",
+    let few_views = (views.len() < setup.fine_min_views).then(|| {
+        format!(
+            "{} views, fewer than the {} a finer finest grid needs",
             views.len(),
             setup.fine_min_views
-        );
-    }
+        )
+    });
+    let plan = GridPlan::new(lo, hi, footprint, why, setup, &mut cfg, few_views);
     let mut field = plan.field(setup, Space::Box, &cfg);
     let dims0 = field.grid.dims;
     let cells = [dims0[0] - 1, dims0[1] - 1, dims0[2] - 1];
@@ -212,6 +209,7 @@ pub fn prepare_scene(
         why,
         setup,
         &mut cfg,
+        None,
     );
     let mut field = plan.field(setup, space.space.clone(), &cfg);
     clear_near_cameras(&mut field, views, space.near_clip);
@@ -266,8 +264,6 @@ struct GridPlan {
     voxel: f32,
     final_dims: [usize; 3],
     why: String,
-    /// Whether the memory budget coarsened the first stage.
-    capped: bool,
 }
 
 impl GridPlan {
@@ -275,7 +271,8 @@ impl GridPlan {
     /// (dense, at the schedule's first scale) would not fit its share of the memory budget
     /// ([`SetupConfig::first_stage_share`]). Then, if [`TrainConfig::stages_when_capped`]
     /// starts coarser, the schedule becomes that one, so the finest stage is not held to the
-    /// first's resolution times the usual ratio. The finest stage
+    /// first's resolution times the usual ratio; unless `keep_schedule` gives a reason not to
+    /// (the report then says it). The finest stage
     /// is sparse: when it starts, the trainer fits its resolution to the budget by the bricks
     /// the occupied cells need ([`Trainer::budget`]).
     fn new(
@@ -285,6 +282,7 @@ impl GridPlan {
         why: String,
         setup: &SetupConfig,
         cfg: &mut TrainConfig,
+        keep_schedule: Option<String>,
     ) -> Self {
         let bytes_per_vertex = setup.bytes_per_vertex();
         let first_scale = |st: &[(f32, f32)]| st.first().map(|s| s.1).unwrap_or(1.0).min(1.0);
@@ -305,12 +303,21 @@ impl GridPlan {
             setup.voxels_per_pixel
         );
         if capped && first_scale(&cfg.stages_when_capped) < coarse {
-            cfg.stages = cfg.stages_when_capped.clone();
-            coarse = first_scale(&cfg.stages);
-            why += &format!(
-                "; the first stage does not fit its share of the memory at that resolution, so the schedule is {}",
-                cfg.stages.iter().map(|(at, s)| format!("{s} from {at}")).collect::<Vec<_>>().join(", ")
-            );
+            if let Some(reason) = keep_schedule {
+                why += &format!("; the schedule stays as asked ({reason})");
+            } else {
+                cfg.stages = cfg.stages_when_capped.clone();
+                coarse = first_scale(&cfg.stages);
+                let stages: Vec<String> = cfg
+                    .stages
+                    .iter()
+                    .map(|(at, s)| format!("{s} from {at}"))
+                    .collect();
+                why += &format!(
+                    "; the first stage does not fit its share of the memory at that resolution, so the schedule is {}",
+                    stages.join(", ")
+                );
+            }
         }
         why += &format!(
             "; the first stage at {coarse} of that resolution is dense, within {} of the memory",
@@ -345,7 +352,6 @@ impl GridPlan {
             voxel,
             final_dims,
             why,
-            capped,
         }
     }
 
