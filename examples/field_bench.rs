@@ -18,7 +18,8 @@
 //! take), FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT,
 //! FIELD_SEED, FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH),
 //! FIELD_LR_NET, FIELD_PRUNE_ALPHA (cells less opaque than this a step are pruned); FIELD_LR,
-//! FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
+//! FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_BATCH, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to
+//! `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -37,9 +38,12 @@ fn pair(name: &str) -> Option<(f32, f32)> {
     Some((a.parse().ok()?, b.parse().ok()?))
 }
 
-/// The overrides both benchmarks take: FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
-/// FIELD_SPARSE, FIELD_PRUNE_ALPHA.
+/// The overrides both benchmarks take: FIELD_BATCH, FIELD_LR, FIELD_LR_FINAL, FIELD_SEED,
+/// FIELD_RUN, FIELD_SPARSE, FIELD_PRUNE_ALPHA.
 fn optimiser_overrides(cfg: &mut TrainConfig) {
+    if let Some(v) = env("FIELD_BATCH") {
+        cfg.batch = v;
+    }
     if let Some((a, b)) = pair("FIELD_LR") {
         (cfg.lr_density, cfg.lr_color) = (a, b);
     }
@@ -182,9 +186,6 @@ fn main() -> objnerf::Result<()> {
     }
     if let Some(v) = env("FIELD_STEP") {
         cfg.render.step = v;
-    }
-    if let Some(v) = env("FIELD_BATCH") {
-        cfg.batch = v;
     }
     if let Some(v) = env("FIELD_CARVE") {
         cfg.carve_weight = v;

@@ -90,6 +90,7 @@ pub mod hole;
 pub mod io;
 pub mod layout;
 pub mod model;
+mod occupancy;
 pub mod pattern;
 pub mod rays;
 pub mod removed;

@@ -243,59 +243,13 @@ impl Field {
     }
 
     /// The bricks the occupied cells `cells` need: those of every cell's 8 corners.
-    fn needed_bricks(grid_dims: [usize; 3], cells: &[[usize; 3]]) -> Vec<bool> {
+    pub(super) fn needed_bricks(grid_dims: [usize; 3], cells: &[[usize; 3]]) -> Vec<bool> {
         let bd = grid_dims.map(|d| d.div_ceil(BRICK));
         let mut need = vec![false; bd.iter().product()];
         for &c in cells {
             mark_corner_bricks(&mut need, bd, c);
         }
         need
-    }
-
-    /// Drop the bricks no occupied cell needs. Returns the slot map ([`Grid::compact`]) when
-    /// something was dropped, for state laid out like the grid to follow.
-    pub fn release_free_bricks(&mut self) -> Option<Vec<u32>> {
-        let cells = self.occupied_cell_list();
-        let need = Field::needed_bricks(self.grid.dims, &cells);
-        let bd = self.grid.brick_dims;
-        let keep: Vec<bool> = (0..self.grid.num_slots())
-            .map(|s| {
-                let b = self.grid.brick_of_slot(s);
-                need[b[0] + bd[0] * (b[1] + bd[1] * b[2])]
-            })
-            .collect();
-        if keep.iter().all(|&k| k) {
-            return None;
-        }
-        let map = self.grid.compact(&keep);
-        super::grid::compact_buffer(&mut self.occupancy, &map, 1);
-        Some(map)
-    }
-
-    /// Drop cells whose largest possible alpha (over a step of `delta` finest voxels) is below
-    /// `thresh`. Post-activation is monotone in the raw density, so a cell's alpha never exceeds
-    /// that of its densest corner: the bound is exact and skipping loses nothing above `thresh`.
-    /// Cells already free stay free (the visual hull carved them).
-    pub fn prune_occupancy(&mut self, delta: f32, thresh: f32) {
-        let ch = self.grid.channels;
-        // raw density at which alpha reaches thresh
-        let sp = -(1.0 - thresh).ln() / delta;
-        let raw_min = if sp > 15.0 { sp } else { sp.exp_m1().ln() } - self.shift();
-        let grid = &self.grid;
-        let dense = |x: usize, y: usize, z: usize| match grid.vertex_slot(x, y, z) {
-            NONE => false,
-            v => grid.data[v as usize * ch] >= raw_min,
-        };
-        let empty: Vec<[usize; 3]> = self
-            .occupied_cell_list()
-            .into_iter()
-            .filter(|c| {
-                !(0..8).any(|i| dense(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2)))
-            })
-            .collect();
-        for c in empty {
-            self.set_occupied(c, false);
-        }
     }
 
     /// World point to grid units (points a space cannot map, behind an NDC camera's near plane,

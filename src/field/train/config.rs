@@ -48,9 +48,9 @@ pub struct TrainConfig {
     pub distortion_weight: f32,
     /// Weight of the sparsity loss per ray (the sum of its kept samples' alphas,
     /// [`RayGrad::alpha_each`]): of two ways to explain a view, the one with less matter seen.
-    /// Off by default: at 3e-4 it takes the membrane out of the demo mug's cup (mesh Chamfer
-    /// 1.72 -> 1.27%) but costs the demo objects 0.2-0.7 dB held out, and applied for the
-    /// first half of training only the membrane grows back (examples/results/field.md).
+    /// Off by default: at 3e-4 it took the membrane out of the demo mug's cup (mesh Chamfer
+    /// 1.72 -> 1.27%) but cost the demo objects 0.2-0.7 dB held out; measured again after
+    /// later changes to training, it no longer does (1.79%, as without; field.md).
     ///
     /// [`RayGrad::alpha_each`]: crate::field::render::RayGrad::alpha_each
     pub sparsity_weight: f32,
