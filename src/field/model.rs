@@ -438,12 +438,12 @@ fn mark_corner_bricks(need: &mut [bool], bd: [usize; 3], c: [usize; 3]) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::field::activation::softplus;
 
     /// A field over the unit cube, alpha_init 0.01.
-    fn unit_cube_field(sh_degree: u32, dims: [usize; 3]) -> Field {
+    pub(in crate::field) fn unit_cube_field(sh_degree: u32, dims: [usize; 3]) -> Field {
         let config = FieldConfig {
             sh_degree,
             alpha_init: 0.01,

@@ -112,19 +112,8 @@ const FAR_FACE_CELLS: [u64; 8] = {
 
 #[cfg(test)]
 mod tests {
-    use super::super::model::FieldConfig;
+    use super::super::model::tests::unit_cube_field;
     use super::*;
-    use glam::Vec3;
-
-    /// A field over the unit cube, alpha_init 0.01.
-    fn unit_cube_field(sh_degree: u32, dims: [usize; 3]) -> Field {
-        let config = FieldConfig {
-            sh_degree,
-            alpha_init: 0.01,
-            base_voxel: 0.1,
-        };
-        Field::new(config, Vec3::ZERO, Vec3::ONE, dims)
-    }
 
     /// Pruning and releasing bricks from the occupancy words agree with the cell-by-cell rules:
     /// a cell stays while a corner is dense enough; a brick stays while a cell needs a vertex
