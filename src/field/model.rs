@@ -154,6 +154,15 @@ impl Field {
         (1.0 / (1.0 - a) - 1.0).ln()
     }
 
+    /// The raw density at which a sample `delta` finest voxels long is `alpha` opaque: the
+    /// inverse of alpha = 1 - exp(-softplus(raw + shift) delta).
+    pub fn raw_for_alpha(&self, alpha: f32, delta: f32) -> f32 {
+        let sp = -(1.0 - alpha).ln() / delta;
+        // softplus^-1(sp) = ln(exp(sp) - 1), which is sp to float precision past 15.
+        let raw = if sp > 15.0 { sp } else { sp.exp_m1().ln() };
+        raw - self.shift()
+    }
+
     /// Cells of the whole box.
     pub fn num_cells(&self) -> usize {
         let d = self.grid.dims;
@@ -345,8 +354,7 @@ impl Field {
     /// the right depth with about the right colour (from a transparent start, training takes
     /// most of its time finding the surfaces).
     pub fn seed_surfaces(&mut self, seeds: &[(Vec3, [u8; 3])]) {
-        let sp = -(1.0 - SEED_ALPHA).ln();
-        let raw = sp.exp_m1().ln() - self.shift();
+        let raw = self.raw_for_alpha(SEED_ALPHA, 1.0);
         let k = self.sh_k();
         let ch = self.grid.channels;
         // sigmoid(C0 * dc) = colour

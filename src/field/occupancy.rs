@@ -48,9 +48,7 @@ impl Field {
     /// Cells already free stay free (the visual hull carved them).
     pub fn prune_occupancy(&mut self, delta: f32, thresh: f32) {
         let ch = self.grid.channels;
-        // raw density at which alpha reaches thresh
-        let sp = -(1.0 - thresh).ln() / delta;
-        let raw_min = if sp > 15.0 { sp } else { sp.exp_m1().ln() } - self.shift();
+        let raw_min = self.raw_for_alpha(thresh, delta);
         let grid = &self.grid;
         let dense = |x: usize, y: usize, z: usize| match grid.vertex_slot(x, y, z) {
             NONE => false,

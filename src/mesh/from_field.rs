@@ -67,9 +67,7 @@ pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
             "the iso-level is an opacity and must lie strictly between 0 and 1, not {iso_alpha}"
         )));
     }
-    let sigma = -(1.0 - iso_alpha).ln();
-    // softplus^-1(sigma) = ln(exp(sigma) - 1)
-    Ok(sigma.exp_m1().ln() - field.shift())
+    Ok(field.raw_for_alpha(iso_alpha, 1.0))
 }
 
 /// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
