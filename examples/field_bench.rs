@@ -17,9 +17,9 @@
 //! footprint), FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may
 //! take), FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT,
 //! FIELD_SEED, FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH),
-//! FIELD_LR_NET, FIELD_PRUNE_ALPHA (cells less opaque than this a step are pruned); FIELD_LR,
-//! FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_BATCH, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to
-//! `demo` too.
+//! FIELD_LR_NET, FIELD_NET_SH (SH degree of the network's view input), FIELD_PRUNE_ALPHA (cells
+//! less opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
+//! FIELD_BATCH, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -73,6 +73,9 @@ fn net_overrides(setup: &mut SetupConfig, cfg: &mut TrainConfig) {
     }
     if let Some(v) = env("FIELD_LR_NET") {
         cfg.lr_net = v;
+    }
+    if let Some(v) = env("FIELD_NET_SH") {
+        setup.net_sh_degree = v;
     }
 }
 
@@ -225,7 +228,8 @@ fn main() -> objnerf::Result<()> {
         "command": args.join(" "),
         "git_commit": commit,
         "threads": rayon::current_num_threads(),
-        "downscale": ds, "sh_degree": degree, "budget_s": secs,
+        "downscale": ds, "sh_degree": degree, "field_sh_degree": trainer.field.config.sh_degree,
+        "budget_s": secs,
         "batch": trainer.cfg.batch, "step_voxels": trainer.cfg.render.step,
         "load_s": load_s, "prepare_s": prep_s, "train": summary,
         "train_cpu_s": train_cpu,

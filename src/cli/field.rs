@@ -55,15 +55,18 @@ pub struct TrainCmd {
     #[arg(long, default_value_t = SetupConfig::default().sh_degree)]
     sh_degree: u32,
     /// Colour from this many features per vertex through a small network (DVGO-style, 32
-    /// hidden units; the view direction enters as its SH basis to --sh-degree) when the object
-    /// has at least --colour-net-min-views training views, SH coefficients otherwise (0: SH
-    /// always). Object fields only (examples/results/field.md, "Colour by view count").
+    /// hidden units; the view direction enters as its SH basis to --colour-net-sh-degree) when
+    /// the object has at least --colour-net-min-views training views, SH coefficients otherwise
+    /// (0: SH always). Object fields only (examples/results/field.md, "Colour by view count").
     #[arg(long, default_value_t = SetupConfig::default().net_features)]
     colour_net: usize,
     /// Fewer training views than this: SH colour (a network's view dependence does not hold
     /// between few views: the demo sphere, 30 views, -0.9 dB held out; lego, 100, +0.6).
     #[arg(long, default_value_t = SetupConfig::default().net_min_views)]
     colour_net_min_views: usize,
+    /// Spherical-harmonic degree of the view direction the colour network takes (0-3).
+    #[arg(long, default_value_t = SetupConfig::default().net_sh_degree)]
+    colour_net_sh_degree: u32,
     /// Memory for the grid and optimiser state, MiB.
     #[arg(long, default_value_t = SetupConfig::default().memory_budget >> 20)]
     memory_mb: usize,
@@ -99,6 +102,7 @@ impl TrainCmd {
                 sh_degree: self.sh_degree.min(2),
                 net_features: self.colour_net,
                 net_min_views: self.colour_net_min_views,
+                net_sh_degree: self.colour_net_sh_degree,
                 memory_budget: self.memory_mb << 20,
                 ..Default::default()
             },

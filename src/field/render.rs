@@ -16,7 +16,7 @@
 use super::activation::{sigmoid, softplus};
 use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
 use super::grid::BRICK;
-use super::model::{sh_basis, Field, MAX_CHANNELS};
+use super::model::{sh_basis, Field, MAX_CHANNELS, SH_TERMS};
 use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
@@ -114,7 +114,7 @@ pub fn forward(
 struct Marcher<'a> {
     f: &'a Field,
     opt: &'a RenderOptions,
-    basis: [f32; 9],
+    basis: [f32; SH_TERMS],
     /// Sample spacing in finest voxels (alpha = 1 - exp(-density * delta)).
     delta: f32,
     shift: f32,
@@ -129,7 +129,7 @@ struct Marcher<'a> {
 
 impl<'a> Marcher<'a> {
     fn new(f: &'a Field, opt: &'a RenderOptions, d: Vec3, samples: &'a mut Vec<Sample>) -> Self {
-        let mut basis = [0f32; 9];
+        let mut basis = [0f32; SH_TERMS];
         sh_basis(f.config.sh_degree, d, &mut basis);
         Marcher {
             f,
@@ -280,7 +280,7 @@ pub fn backward(
     let (g_rgb, g_alpha, g_depth, g_weights) = (g.rgb, g.alpha, g.depth, g.weights);
     let k = f.sh_k();
     let ch = f.grid.channels;
-    let mut basis = [0f32; 9];
+    let mut basis = [0f32; SH_TERMS];
     sh_basis(f.config.sh_degree, d, &mut basis);
     let delta = opt.step * f.voxel / f.config.base_voxel;
     // What lies behind the current sample, per unit of transmittance there.
@@ -493,12 +493,15 @@ mod tests {
     /// sparsity.
     #[test]
     fn gradients_match_finite_differences() {
-        // SH degrees 0..=2, then colour from 5 features through a network of 6 hidden units.
-        for degree in 0..=3 {
+        // SH degrees 0..=2, then colour from 5 features through a network of 6 hidden units
+        // with the view direction to SH degree 1 and to 3.
+        for degree in 0..=4 {
             let f0 = if degree < 3 {
                 random_field(3 + degree as u64, degree)
             } else {
-                let mut f = random_field(6, 1).with_colour_net(5, 6, 2);
+                let mut f = random_field(6, 0);
+                f.config.sh_degree = if degree == 3 { 1 } else { 3 };
+                let mut f = f.with_colour_net(5, 6, 2);
                 let mut r = Rng::new(8);
                 f.grid.data.iter_mut().for_each(|v| *v = r.normal() as f32);
                 f
@@ -582,7 +585,10 @@ mod tests {
             }
             assert!(checked > 20, "only {checked} parameters touched");
             for i in 0..net_grad.len() {
-                let eps = 1e-2f32;
+                // Smaller than the grid's step: at 1e-2 a hidden unit of the degree-3 network
+                // crosses its ReLU kink (weight 129: 0.00359 numeric against 0.00380 analytic;
+                // at 5e-3 and 2e-3, 0.00381 and 0.00380).
+                let eps = 3e-3f32;
                 let (mut fp, mut fm) = (f0.clone(), f0.clone());
                 fp.net.as_mut().unwrap().weights[i] += eps;
                 fm.net.as_mut().unwrap().weights[i] -= eps;

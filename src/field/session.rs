@@ -23,6 +23,11 @@ pub struct SetupConfig {
     /// coefficients on the grid.
     pub net_features: usize,
     pub net_hidden: usize,
+    /// The SH degree of the view direction a colour network takes (0-3; `sh_degree` is SH
+    /// colour's). Lego 200^2 in 300 s, degree 1 / 2 / 3: 33.31 / 33.52 / 33.55 dB; its worst
+    /// test views miss the base plate's gloss seen from above (examples/results/field.md,
+    /// "The network's view input").
+    pub net_sh_degree: u32,
     /// An object field trained on fewer views than this takes SH colour whatever
     /// `net_features` says: the network's view dependence needs many views to hold between
     /// them. Lego (100 views) gains 0.5-0.6 dB held out at 400^2 and 800^2 from it; the demo
@@ -57,12 +62,18 @@ impl SetupConfig {
 
     /// Whether the colour settings can be built: a clear error, not a panic, for user input.
     pub fn check(&self) -> Result<()> {
-        let dir_terms = super::model::sh_coeffs(self.sh_degree.min(2));
+        if self.sh_degree > 2 || self.net_sh_degree > 3 {
+            return Err(crate::error::Error::invalid(format!(
+                "SH colour goes up to degree 2 and a colour network's view input up to 3 (asked for {} and {})",
+                self.sh_degree, self.net_sh_degree
+            )));
+        }
+        let dir_terms = super::model::sh_coeffs(self.net_sh_degree);
         let most = (MAX_INPUTS - dir_terms).min(MAX_CHANNELS - 1);
         if self.net_features > most || (self.net_features > 0 && self.net_hidden == 0) {
             return Err(crate::error::Error::invalid(format!(
                 "a colour network takes 1 to {most} features and 1 to {MAX_HIDDEN} hidden units at SH degree {} (asked for {} and {})",
-                self.sh_degree, self.net_features, self.net_hidden
+                self.net_sh_degree, self.net_features, self.net_hidden
             )));
         }
         if self.net_hidden > MAX_HIDDEN {
@@ -87,6 +98,10 @@ impl SetupConfig {
             );
             return (s, why);
         }
+        if s.net_features > 0 {
+            // The field's one SH degree is the network's view input from here on.
+            s.sh_degree = s.net_sh_degree;
+        }
         let why = format!("{} ({views} views)", s.colour());
         (s, why)
     }
@@ -95,7 +110,10 @@ impl SetupConfig {
     fn colour(&self) -> String {
         match self.net_features {
             0 => format!("SH degree {}", self.sh_degree),
-            f => format!("network: {f} features, {} hidden units", self.net_hidden),
+            f => format!(
+                "network: {f} features, {} hidden units, view direction to SH degree {}",
+                self.net_hidden, self.net_sh_degree
+            ),
         }
     }
 
@@ -114,6 +132,7 @@ impl Default for SetupConfig {
             sh_degree: 1,
             net_features: 8,
             net_hidden: 32,
+            net_sh_degree: 3,
             net_min_views: 80,
             fine_min_views: 80,
             voxels_per_pixel: 1.0,
@@ -364,9 +383,12 @@ impl GridPlan {
     /// The field at the first coarse-to-fine stage.
     fn field(&self, setup: &SetupConfig, space: Space, cfg: &TrainConfig) -> Field {
         let first_scale = cfg.stages.first().map(|s| s.1).unwrap_or(1.0);
+        let net = setup.net_features > 0;
+        // A network's grid holds [density, features]: built at SH degree 0 first, not with SH
+        // colour's channels (49 at the network's degree 3) only to replace them.
         let mut f = Field::new(
             FieldConfig {
-                sh_degree: setup.sh_degree,
+                sh_degree: if net { 0 } else { setup.sh_degree },
                 alpha_init: setup.alpha_init,
                 base_voxel: self.voxel,
             },
@@ -374,7 +396,8 @@ impl GridPlan {
             self.hi,
             stage_dims(self.final_dims, first_scale),
         );
-        if setup.net_features > 0 {
+        if net {
+            f.config.sh_degree = setup.sh_degree;
             f = f.with_colour_net(setup.net_features, setup.net_hidden, cfg.seed);
         }
         f.space = space;

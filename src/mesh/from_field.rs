@@ -13,7 +13,7 @@ use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::colour_net::{MAX_HIDDEN, MAX_INPUTS};
-use crate::field::model::{sh_basis, Field, MAX_CHANNELS};
+use crate::field::model::{sh_basis, Field, MAX_CHANNELS, SH_TERMS};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -87,7 +87,7 @@ fn raw_at(field: &Field, p: Vec3) -> f32 {
 }
 
 /// Colour at a world point seen along `basis` (an SH basis of a direction), linear 0..1.
-fn color_at(field: &Field, p: Vec3, basis: &[f32; 9]) -> [f32; 3] {
+fn color_at(field: &Field, p: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
     let g = field.to_grid(p);
     let dims = field.grid.dims;
     let g = Vec3::new(
@@ -106,8 +106,8 @@ fn color_at(field: &Field, p: Vec3, basis: &[f32; 9]) -> [f32; 3] {
 
 /// The basis a vertex's colour is read with: SH colour keeps its view-independent (DC) term
 /// only; a colour network is asked for the view straight at the surface (along `-n`).
-fn vertex_basis(field: &Field, n: Vec3) -> [f32; 9] {
-    let mut basis = [0f32; 9];
+fn vertex_basis(field: &Field, n: Vec3) -> [f32; SH_TERMS] {
+    let mut basis = [0f32; SH_TERMS];
     match field.net {
         Some(_) => sh_basis(field.config.sh_degree, -n, &mut basis),
         None => basis[0] = 0.282_094_8,

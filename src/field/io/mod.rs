@@ -497,7 +497,9 @@ fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(H
         Some(n) => n.features,
         None => 3 * sh_coeffs(h.config.sh_degree),
     };
-    if h.config.sh_degree > 2 || h.channels != 1 + colour_channels {
+    // SH colour stops at degree 2; a network's view input goes to 3.
+    let most_degree = if h.colour_net.is_some() { 3 } else { 2 };
+    if h.config.sh_degree > most_degree || h.channels != 1 + colour_channels {
         return Err(bad(format!(
             "inconsistent header: {} channels for SH degree {} and colour network {:?}",
             h.channels, h.config.sh_degree, h.colour_net
