@@ -24,9 +24,10 @@ pub struct SetupConfig {
     pub net_features: usize,
     pub net_hidden: usize,
     /// The SH degree of the view direction a colour network takes (0-3; `sh_degree` is SH
-    /// colour's). Lego 200^2 in 300 s, degree 1 / 2 / 3: 33.31 / 33.52 / 33.55 dB; its worst
-    /// test views miss the base plate's gloss seen from above (examples/results/field.md,
-    /// "The network's view input").
+    /// colour's). Lego 200^2 in 300 s, degree 1 / 2 / 3: 33.31 / 33.52 / 33.55 dB; 800^2 in 20
+    /// min 33.42 -> 33.56 (1 -> 3); shorter runs lose a little to the fewer steps (400^2 300 s
+    /// 32.84 -> 32.75). Its worst test views miss the base plate's gloss seen from above
+    /// (examples/results/field.md, "The network's view input").
     pub net_sh_degree: u32,
     /// An object field trained on fewer views than this takes SH colour whatever
     /// `net_features` says: the network's view dependence needs many views to hold between
