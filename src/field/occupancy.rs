@@ -125,8 +125,7 @@ mod tests {
             f.grid.data[v * ch] = if r.f32() < 0.02 { 5.0 } else { -20.0 };
         }
         let (delta, thresh) = (1.0, 0.01);
-        let sp = -(1.0f32 - thresh).ln() / delta;
-        let raw_min = sp.exp_m1().ln() - f.shift();
+        let raw_min = f.raw_for_alpha(thresh, delta);
         let dense = |f: &Field, x, y, z| match f.grid.vertex_slot(x, y, z) {
             NONE => false,
             v => f.grid.data[v as usize * ch] >= raw_min,

@@ -48,9 +48,10 @@ pub struct TrainConfig {
     pub distortion_weight: f32,
     /// Weight of the sparsity loss per ray (the sum of its kept samples' alphas,
     /// [`RayGrad::alpha_each`]): of two ways to explain a view, the one with less matter seen.
-    /// Off by default: at 3e-4 it took the membrane out of the demo mug's cup (mesh Chamfer
-    /// 1.72 -> 1.27%) but cost the demo objects 0.2-0.7 dB held out; measured again after
-    /// later changes to training, it no longer does (1.79%, as without; field.md).
+    /// Off by default: it takes the membrane out of the demo mug's cup (`objnerf demo` at 1e-3:
+    /// mesh Chamfer 1.66 -> 1.26%, held out 33.60 -> 33.34 dB) but costs the other demo objects
+    /// up to 0.7 dB held out (examples/results/field.md, "The mug's membrane" and "The sphere
+    /// and box meshes hollow again").
     ///
     /// [`RayGrad::alpha_each`]: crate::field::render::RayGrad::alpha_each
     pub sparsity_weight: f32,
