@@ -58,14 +58,38 @@ impl ColourNet {
     }
 
     /// RGB for inputs `x` ([features, direction terms]); the hidden activations go to `h`.
-    #[inline]
     pub fn forward(&self, x: &[f32], h: &mut [f32]) -> [f32; 3] {
-        let (w1, b1, w2, b2) = self.parts();
+        let mut bias = [0f32; MAX_HIDDEN];
+        self.ray_bias(&x[self.features..self.inputs()], &mut bias);
+        self.forward_features(&x[..self.features], &bias, h)
+    }
+
+    /// The hidden units' pre-activation from the biases and the direction terms `dir`, which
+    /// every sample of a ray shares: computed once a ray, it leaves a sample only its features'
+    /// rows of W1 (8 of 24 at the default size).
+    pub fn ray_bias(&self, dir: &[f32], bias: &mut [f32]) {
+        let (w1, b1, _, _) = self.parts();
+        let (nf, nh) = (self.features, self.hidden);
+        let bias = &mut bias[..nh];
+        bias.copy_from_slice(b1);
+        for (di, row) in dir[..self.dir_terms]
+            .iter()
+            .zip(w1[nf * nh..].chunks_exact(nh))
+        {
+            bias.iter_mut().zip(row).for_each(|(a, w)| *a += di * w);
+        }
+    }
+
+    /// RGB for a sample's `features` on a ray whose [`ColourNet::ray_bias`] is `bias`; the
+    /// hidden activations go to `h`.
+    #[inline]
+    pub fn forward_features(&self, features: &[f32], bias: &[f32], h: &mut [f32]) -> [f32; 3] {
+        let (w1, _, w2, b2) = self.parts();
         let nh = self.hidden;
         let h = &mut h[..nh];
-        h.copy_from_slice(b1);
+        h.copy_from_slice(&bias[..nh]);
         // Input-major W1: each input adds a scaled row to every hidden unit (vectorises).
-        for (xi, row) in x[..self.inputs()].iter().zip(w1.chunks_exact(nh)) {
+        for (xi, row) in features[..self.features].iter().zip(w1.chunks_exact(nh)) {
             h.iter_mut().zip(row).for_each(|(a, w)| *a += xi * w);
         }
         h.iter_mut().for_each(|a| *a = a.max(0.0));
@@ -74,7 +98,6 @@ impl ColourNet {
 
     /// Backward of [`ColourNet::forward`] for dL/dRGB `g`: adds dL/dweights to `g_w` and writes
     /// dL/dfeatures (the first `features` inputs) to `g_x`.
-    #[inline]
     pub fn backward(
         &self,
         x: &[f32],
@@ -84,11 +107,31 @@ impl ColourNet {
         g_x: &mut [f32],
         g_w: &mut [f32],
     ) {
+        let mut g_bias = [0f32; MAX_HIDDEN];
+        self.backward_features(&x[..self.features], h, rgb, g, g_x, g_w, &mut g_bias);
+        self.backward_ray(&x[self.features..self.inputs()], &g_bias, g_w);
+    }
+
+    /// Backward of [`ColourNet::forward_features`] for dL/dRGB `g`: adds dL/dweights of W2, b2
+    /// and W1's feature rows to `g_w`, writes dL/dfeatures to `g_x`, and adds dL/d(ray bias)
+    /// to `g_bias`, which [`ColourNet::backward_ray`] turns into the rest once a ray.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn backward_features(
+        &self,
+        features: &[f32],
+        h: &[f32],
+        rgb: [f32; 3],
+        g: [f32; 3],
+        g_x: &mut [f32],
+        g_w: &mut [f32],
+        g_bias: &mut [f32],
+    ) {
         let (ni, nh, nf) = (self.inputs(), self.hidden, self.features);
         let (w1, _, w2, _) = self.parts();
         let go = [0, 1, 2].map(|c| g[c] * rgb[c] * (1.0 - rgb[c]));
         let (gw1, rest) = g_w.split_at_mut(ni * nh);
-        let (gb1, rest) = rest.split_at_mut(nh);
+        let (_, rest) = rest.split_at_mut(nh);
         let (gw2, gb2) = rest.split_at_mut(3 * nh);
         let h = &h[..nh];
         let mut dh = [0f32; MAX_HIDDEN];
@@ -106,14 +149,35 @@ impl ColourNet {
                 *d = 0.0;
             }
         }
-        gb1.iter_mut().zip(dh.iter()).for_each(|(a, d)| *a += d);
-        for (i, (xi, row)) in x[..ni].iter().zip(gw1.chunks_exact_mut(nh)).enumerate() {
+        g_bias[..nh]
+            .iter_mut()
+            .zip(dh.iter())
+            .for_each(|(a, d)| *a += d);
+        for (i, (xi, row)) in features[..nf]
+            .iter()
+            .zip(gw1.chunks_exact_mut(nh))
+            .enumerate()
+        {
             row.iter_mut()
                 .zip(dh.iter())
                 .for_each(|(a, d)| *a += xi * d);
-            if i < nf {
-                g_x[i] = dot(&w1[i * nh..(i + 1) * nh], dh);
-            }
+            g_x[i] = dot(&w1[i * nh..(i + 1) * nh], dh);
+        }
+    }
+
+    /// The backward of [`ColourNet::ray_bias`]: dL/d(ray bias) `g_bias`, summed over a ray's
+    /// samples, into the gradients of b1 and W1's direction rows.
+    pub fn backward_ray(&self, dir: &[f32], g_bias: &[f32], g_w: &mut [f32]) {
+        let (ni, nh, nf) = (self.inputs(), self.hidden, self.features);
+        let (gw1, rest) = g_w.split_at_mut(ni * nh);
+        let gb1 = &mut rest[..nh];
+        let g_bias = &g_bias[..nh];
+        gb1.iter_mut().zip(g_bias).for_each(|(a, d)| *a += d);
+        for (di, row) in dir[..self.dir_terms]
+            .iter()
+            .zip(gw1[nf * nh..].chunks_exact_mut(nh))
+        {
+            row.iter_mut().zip(g_bias).for_each(|(a, d)| *a += di * d);
         }
     }
 

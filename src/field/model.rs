@@ -8,7 +8,7 @@
 //! meaning when the grid is refined.
 
 use super::activation::sigmoid;
-use super::colour_net::ColourNet;
+use super::colour_net::{ColourNet, MAX_HIDDEN};
 use super::grid::{Grid, BRICK, BRICK_VERTICES, NONE};
 use super::space::Space;
 use glam::Vec3;
@@ -112,6 +112,15 @@ pub const MAX_CHANNELS: usize = 28;
 /// Raw density that makes one finest voxel this opaque where a sparse point was seen.
 const SEED_ALPHA: f32 = 0.3;
 
+/// What every sample of a ray shares for its colour ([`Field::shading`]): the SH basis of its
+/// direction and, with a colour network, the hidden units' pre-activation from that direction
+/// ([`ColourNet::ray_bias`]), so a sample pays only for its features.
+#[derive(Clone, Copy, Debug)]
+pub struct RayShading {
+    pub basis: [f32; SH_TERMS],
+    pub bias: [f32; MAX_HIDDEN],
+}
+
 impl Field {
     /// A fresh field over a box: density 0 (alpha = alpha_init per finest voxel), grey colour,
     /// every cell occupied (every brick allocated).
@@ -145,26 +154,25 @@ impl Field {
         self
     }
 
+    /// What the samples of a ray seen along the SH basis `basis` share for their colour.
+    pub fn shading(&self, basis: [f32; SH_TERMS]) -> RayShading {
+        let mut bias = [0f32; MAX_HIDDEN];
+        if let Some(net) = &self.net {
+            net.ray_bias(&basis[..net.dir_terms], &mut bias);
+        }
+        RayShading { basis, bias }
+    }
+
     /// Colour of a sample from its interpolated colour channels `feat` (SH coefficients or
-    /// features) and its direction's SH basis; `x` and `h` are scratch for the network.
+    /// features) on a ray shaded by `s`; `h` is scratch for the network's hidden units.
     #[inline]
-    pub fn shade(
-        &self,
-        feat: &[f32],
-        basis: &[f32; SH_TERMS],
-        x: &mut [f32],
-        h: &mut [f32],
-    ) -> [f32; 3] {
+    pub fn shade(&self, feat: &[f32], s: &RayShading, h: &mut [f32]) -> [f32; 3] {
         let k = self.sh_k();
         match &self.net {
-            Some(net) => {
-                x[..net.features].copy_from_slice(&feat[..net.features]);
-                x[net.features..net.inputs()].copy_from_slice(&basis[..k]);
-                net.forward(x, h)
-            }
+            Some(net) => net.forward_features(&feat[..net.features], &s.bias, h),
             None => [0, 1, 2].map(|c| {
                 let coef = &feat[c * k..(c + 1) * k];
-                sigmoid(coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum())
+                sigmoid(coef.iter().zip(&s.basis[..k]).map(|(a, b)| a * b).sum())
             }),
         }
     }

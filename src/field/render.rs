@@ -14,9 +14,9 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::activation::{sigmoid, softplus};
-use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
+use super::colour_net::MAX_HIDDEN;
 use super::grid::BRICK;
-use super::model::{sh_basis, Field, MAX_CHANNELS, SH_TERMS};
+use super::model::{sh_basis, Field, RayShading, MAX_CHANNELS, SH_TERMS};
 use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
@@ -114,15 +114,14 @@ pub fn forward(
 struct Marcher<'a> {
     f: &'a Field,
     opt: &'a RenderOptions,
-    basis: [f32; SH_TERMS],
+    shading: RayShading,
     /// Sample spacing in finest voxels (alpha = 1 - exp(-density * delta)).
     delta: f32,
     shift: f32,
     trans: f32,
     out: RayOut,
     feat: [f32; MAX_CHANNELS],
-    /// Scratch for a network's inputs and hidden units.
-    x: [f32; MAX_INPUTS],
+    /// Scratch for a network's hidden units.
     h: [f32; MAX_HIDDEN],
     samples: &'a mut Vec<Sample>,
 }
@@ -134,13 +133,12 @@ impl<'a> Marcher<'a> {
         Marcher {
             f,
             opt,
-            basis,
+            shading: f.shading(basis),
             delta: opt.step * f.voxel / f.config.base_voxel,
             shift: f.shift(),
             trans: 1.0,
             out: RayOut::default(),
             feat: [0f32; MAX_CHANNELS],
-            x: [0f32; MAX_INPUTS],
             h: [0f32; MAX_HIDDEN],
             samples,
         }
@@ -218,7 +216,7 @@ impl<'a> Marcher<'a> {
         if shaded {
             let ch = f.grid.channels;
             f.grid.interp_range(&kc, 1, &mut self.feat[..ch - 1]);
-            rgb = f.shade(&self.feat, &self.basis, &mut self.x, &mut self.h);
+            rgb = f.shade(&self.feat, &self.shading, &mut self.h);
         }
         for c in 0..3 {
             self.out.rgb[c] += w * rgb[c];
@@ -282,13 +280,16 @@ pub fn backward(
     let ch = f.grid.channels;
     let mut basis = [0f32; SH_TERMS];
     sh_basis(f.config.sh_degree, d, &mut basis);
+    let shading = f.shading(basis);
     let delta = opt.step * f.voxel / f.config.base_voxel;
     // What lies behind the current sample, per unit of transmittance there.
     let mut r_rgb = bg;
     let mut r_a = 0.0f32;
     let mut r_d = 0.0f32;
     let mut grad = [0f32; MAX_CHANNELS];
-    let (mut feat, mut x, mut h) = ([0f32; MAX_CHANNELS], [0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
+    let (mut feat, mut h) = ([0f32; MAX_CHANNELS], [0f32; MAX_HIDDEN]);
+    // dL/d(the ray's shared pre-activation), summed over its samples.
+    let mut g_bias = [0f32; MAX_HIDDEN];
     for (i, s) in samples.iter().enumerate().rev() {
         let w = s.trans * s.alpha;
         // Everything linear in the weights as one value per sample: depth (t) and g_weights.
@@ -308,9 +309,18 @@ pub fn backward(
                     .grid
                     .corners_of(f.grid.cell_of_base(s.base as usize), s.frac);
                 f.grid.interp_range(&kc, 1, &mut feat[..ch - 1]);
-                f.shade(&feat, &basis, &mut x, &mut h);
+                f.shade(&feat, &shading, &mut h);
                 let gc = g_rgb.map(|c| c * w);
-                net.backward(&x, &h, s.rgb, gc, &mut grad[1..], net_grad);
+                let nf = net.features;
+                net.backward_features(
+                    &feat[..nf],
+                    &h,
+                    s.rgb,
+                    gc,
+                    &mut grad[1..],
+                    net_grad,
+                    &mut g_bias,
+                );
             }
             Some(_) => grad[1..ch].fill(0.0),
             None => {
@@ -328,6 +338,9 @@ pub fn backward(
         }
         r_a = s.alpha + (1.0 - s.alpha) * r_a;
         r_d = s.alpha * value + (1.0 - s.alpha) * r_d;
+    }
+    if let Some(net) = &f.net {
+        net.backward_ray(&basis[..net.dir_terms], &g_bias, net_grad);
     }
 }
 

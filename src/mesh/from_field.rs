@@ -12,7 +12,7 @@ use super::frame::GltfFrame;
 use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
-use crate::field::colour_net::{MAX_HIDDEN, MAX_INPUTS};
+use crate::field::colour_net::MAX_HIDDEN;
 use crate::field::model::{sh_basis, Field, MAX_CHANNELS, SH_TERMS};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -100,8 +100,8 @@ fn color_at(field: &Field, p: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
     let mut feat = [0f32; MAX_CHANNELS];
     let ch = field.grid.channels;
     field.grid.interp_range(&k, 1, &mut feat[..ch - 1]);
-    let (mut x, mut h) = ([0f32; MAX_INPUTS], [0f32; MAX_HIDDEN]);
-    field.shade(&feat, basis, &mut x, &mut h)
+    let mut h = [0f32; MAX_HIDDEN];
+    field.shade(&feat, &field.shading(*basis), &mut h)
 }
 
 /// The basis a vertex's colour is read with: SH colour keeps its view-independent (DC) term
