@@ -17,7 +17,8 @@
 //! footprint), FIELD_MEM_MB, FIELD_FIRST_SHARE (share of the memory the dense first stage may
 //! take), FIELD_CARVE (carve weight before each growth), FIELD_LR_FINAL, FIELD_ALPHA_INIT,
 //! FIELD_SEED, FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH),
-//! FIELD_LR_NET, FIELD_NET_SH (SH degree of the network's view input), FIELD_PRUNE_ALPHA (cells
+//! FIELD_LR_NET, FIELD_LARGE (passes over the pixels from which the large model is taken; FIELD_NET
+//! and FIELD_VPP turn it off), FIELD_NET_SH (SH degree of the network's view input), FIELD_PRUNE_ALPHA (cells
 //! less opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
 //! FIELD_BATCH, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
 
@@ -70,6 +71,11 @@ fn net_overrides(setup: &mut SetupConfig, cfg: &mut TrainConfig) {
     if let Some((f, h)) = pair("FIELD_NET") {
         (setup.net_features, setup.net_hidden) = (f as usize, h as usize);
         setup.net_min_views = 0;
+        // The network asked for, not the large model.
+        setup.large_model_passes = f64::INFINITY;
+    }
+    if let Some(v) = env("FIELD_LARGE") {
+        setup.large_model_passes = v;
     }
     if let Some(v) = env("FIELD_LR_NET") {
         cfg.lr_net = v;
@@ -152,12 +158,16 @@ fn main() -> objnerf::Result<()> {
     let views = field::load_views(&train, &MaskSource::Alpha, ds)?;
     let test_views = field::load_views(&test, &MaskSource::Alpha, ds)?;
     let load_s = t0.elapsed().as_secs_f64();
+    // Sized for the budget as `objnerf train --time-budget` sizes it (unless FIELD_STEPS-like
+    // step counts say less).
     let mut setup = SetupConfig {
         sh_degree: degree,
+        time_budget: Some(secs),
         ..Default::default()
     };
     if let Some(v) = env("FIELD_VPP") {
         setup.voxels_per_pixel = v;
+        setup.large_model_passes = f64::INFINITY;
     }
     if let Some(v) = env("FIELD_ALPHA_INIT") {
         setup.alpha_init = v;

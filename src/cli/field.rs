@@ -55,7 +55,8 @@ pub struct TrainCmd {
     #[arg(long, default_value_t = SetupConfig::default().sh_degree)]
     sh_degree: u32,
     /// Colour from this many features per vertex through a small network (DVGO-style, 32
-    /// hidden units; the view direction enters as its SH basis to --colour-net-sh-degree) when
+    /// hidden units, or the large model's 12 x 64 on a long run: --large-model-passes; the view
+    /// direction enters as its SH basis to --colour-net-sh-degree) when
     /// the object has at least --colour-net-min-views training views, SH coefficients otherwise
     /// (0: SH always). Object fields only (examples/results/field.md, "Colour by view count").
     #[arg(long, default_value_t = SetupConfig::default().net_features)]
@@ -67,6 +68,11 @@ pub struct TrainCmd {
     /// Spherical-harmonic degree of the view direction the colour network takes (0-3).
     #[arg(long, default_value_t = SetupConfig::default().net_sh_degree)]
     colour_net_sh_degree: u32,
+    /// A run that affords this many passes over its training pixels (its steps, or its
+    /// --time-budget at the rate of a 2-core machine) trains the large model: a colour network
+    /// of 12 features and 64 hidden units on a grid 1.3x finer ('inf': never).
+    #[arg(long, default_value_t = SetupConfig::default().large_model_passes)]
+    large_model_passes: f64,
     /// Memory for the grid and optimiser state, MiB.
     #[arg(long, default_value_t = SetupConfig::default().memory_budget >> 20)]
     memory_mb: usize,
@@ -103,6 +109,7 @@ impl TrainCmd {
                 net_features: self.colour_net,
                 net_min_views: self.colour_net_min_views,
                 net_sh_degree: self.colour_net_sh_degree,
+                large_model_passes: self.large_model_passes,
                 memory_budget: self.memory_mb << 20,
                 ..Default::default()
             },

@@ -169,7 +169,11 @@ pub fn fit_scene(
     let (mut trainer, rays, setup) = match resume {
         None => {
             let points = points_in_masks(scene, &views, opts.downscale);
-            let (t, r, s) = prepare(&views, &points, &opts.setup, cfg)?;
+            let setup = SetupConfig {
+                time_budget: opts.time_budget,
+                ..opts.setup.clone()
+            };
+            let (t, r, s) = prepare(&views, &points, &setup, cfg)?;
             (t, r, Some(s))
         }
         Some(m) => {

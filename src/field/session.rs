@@ -43,6 +43,18 @@ pub struct SetupConfig {
     pub fine_min_views: usize,
     /// Voxels per pixel footprint at the median viewing distance.
     pub voxels_per_pixel: f32,
+    /// The training a run affords, in passes over its training pixels, from which a field
+    /// with a colour network is sized as the large model: `large_net` (features, hidden
+    /// units) at `large_voxels_per_pixel`. More parameters fit better only when there are the
+    /// steps to fit them: lego 200^2 in 300 s (~25 passes) 33.65 dB with the usual model,
+    /// 34.05 with the large one; in 60 s (~5 passes) the usual 32.40, the large network alone
+    /// 31.96 (examples/results/field.md, "A larger model for a longer run").
+    pub large_model_passes: f64,
+    pub large_net: (usize, usize),
+    pub large_voxels_per_pixel: f32,
+    /// The training time the run has (seconds; None: its step count alone), which the
+    /// caller fills in: with the step count, what [`SetupConfig::large_model_passes`] reads.
+    pub time_budget: Option<f64>,
     /// Bytes for the grid and its optimiser state.
     pub memory_budget: usize,
     /// The share of `memory_budget` the first (dense) stage may take. The finest stage has 8x
@@ -86,9 +98,17 @@ impl SetupConfig {
         Ok(())
     }
 
-    /// These settings for an object trained on `views` views (SH colour under
-    /// `net_min_views`), and what colours it, for its report.
-    pub fn for_views(&self, views: usize) -> (SetupConfig, String) {
+    /// These settings for an object trained on `views` views of `pixels` pixels in all for
+    /// `steps` steps of `batch` rays (SH colour under `net_min_views`; the large model where
+    /// the run affords [`SetupConfig::large_model_passes`]), and what colours it, for its
+    /// report.
+    pub fn for_views(
+        &self,
+        views: usize,
+        pixels: usize,
+        steps: usize,
+        batch: usize,
+    ) -> (SetupConfig, String) {
         let mut s = self.clone();
         if self.net_features > 0 && views < self.net_min_views {
             s.net_features = 0;
@@ -99,12 +119,32 @@ impl SetupConfig {
             );
             return (s, why);
         }
+        let mut why = format!("{views} views");
         if s.net_features > 0 {
             // The field's one SH degree is the network's view input from here on.
             s.sh_degree = s.net_sh_degree;
+            let passes = self.passes(pixels, steps, batch);
+            if passes >= self.large_model_passes {
+                (s.net_features, s.net_hidden) = self.large_net;
+                s.voxels_per_pixel = self.large_voxels_per_pixel;
+                why += &format!(
+                    "; the large model: ~{passes:.0} passes over the pixels, at least {}",
+                    self.large_model_passes
+                );
+            }
         }
-        let why = format!("{} ({views} views)", s.colour());
+        let why = format!("{} ({why})", s.colour());
         (s, why)
+    }
+
+    /// Passes over `pixels` that `steps` steps of `batch` rays make, or fewer if the time
+    /// budget ends first (at [`NOMINAL_RAYS_PER_SECOND`]).
+    fn passes(&self, pixels: usize, steps: usize, batch: usize) -> f64 {
+        let mut rays = steps as f64 * batch as f64;
+        if let Some(secs) = self.time_budget {
+            rays = rays.min(secs * NOMINAL_RAYS_PER_SECOND);
+        }
+        rays / pixels.max(1) as f64
     }
 
     /// What colours the field.
@@ -137,6 +177,10 @@ impl Default for SetupConfig {
             net_min_views: 80,
             fine_min_views: 80,
             voxels_per_pixel: 1.0,
+            large_model_passes: 15.0,
+            large_net: (12, 64),
+            large_voxels_per_pixel: 1.3,
+            time_budget: None,
             memory_budget: 1 << 30,
             first_stage_share: 0.25,
             pad: 0.02,
@@ -144,6 +188,13 @@ impl Default for SetupConfig {
         }
     }
 }
+
+/// Training rays a second that a time budget is taken to buy when sizing the model
+/// ([`SetupConfig::large_model_passes`]): lego 200^2 with the usual model on the 2-core machine
+/// the defaults were measured on (47 786 steps of 2048 rays in 300 s). A constant, not a
+/// measurement: a faster machine takes the large model later than it could, a slower one
+/// sooner.
+pub const NOMINAL_RAYS_PER_SECOND: f64 = 3.0e5;
 
 /// What the setup chose, for the log and the benchmark JSON.
 #[derive(Clone, Debug, Serialize)]
@@ -173,7 +224,8 @@ pub fn prepare(
     mut cfg: TrainConfig,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
-    let (setup, colour) = setup.for_views(views.len());
+    let pixels = views.iter().map(|v| v.rgba.len()).sum();
+    let (setup, colour) = setup.for_views(views.len(), pixels, cfg.steps, cfg.batch);
     let setup = &setup;
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
@@ -531,5 +583,48 @@ pub fn run(
             / seconds.max(1e-9),
         final_psnr: last.psnr,
         stopped_by,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Lego 200^2: 100 views of 200 x 200 pixels.
+    const PIXELS: usize = 100 * 200 * 200;
+
+    #[test]
+    fn a_long_run_on_many_views_takes_the_large_model() {
+        let with_budget = |secs| SetupConfig {
+            time_budget: Some(secs),
+            ..Default::default()
+        };
+        let uncapped = super::super::fit::UNCAPPED_STEPS;
+        // 300 s: ~22 passes; 60 s: ~4.5.
+        let (long, why) = with_budget(300.0).for_views(100, PIXELS, uncapped, 2048);
+        assert_eq!((long.net_features, long.net_hidden), (12, 64), "{why}");
+        assert_eq!(long.voxels_per_pixel, 1.3);
+        assert!(why.contains("large model"), "{why}");
+        let (short, _) = with_budget(60.0).for_views(100, PIXELS, uncapped, 2048);
+        assert_eq!((short.net_features, short.net_hidden), (8, 32));
+        assert_eq!(short.voxels_per_pixel, 1.0);
+        // A step count caps the passes whatever the budget (20 000 steps: ~10 passes).
+        let (capped, _) = with_budget(300.0).for_views(100, PIXELS, 20_000, 2048);
+        assert_eq!(capped.net_features, 8);
+        // Without a budget the steps alone decide.
+        let (steps, _) = SetupConfig::default().for_views(100, PIXELS, 40_000, 2048);
+        assert_eq!(steps.net_hidden, 64);
+        // Few views keep SH colour and their grid whatever the budget.
+        let (few, _) = with_budget(3000.0).for_views(30, PIXELS, uncapped, 2048);
+        assert_eq!((few.net_features, few.voxels_per_pixel), (0, 1.0));
+        // 'inf': never.
+        let never = SetupConfig {
+            large_model_passes: f64::INFINITY,
+            ..with_budget(3000.0)
+        };
+        assert_eq!(
+            never.for_views(100, PIXELS, uncapped, 2048).0.net_hidden,
+            32
+        );
     }
 }
