@@ -158,8 +158,8 @@ fn main() -> objnerf::Result<()> {
     let views = field::load_views(&train, &MaskSource::Alpha, ds)?;
     let test_views = field::load_views(&test, &MaskSource::Alpha, ds)?;
     let load_s = t0.elapsed().as_secs_f64();
-    // Sized for the budget as `objnerf train --time-budget` sizes it (unless FIELD_STEPS-like
-    // step counts say less).
+    // Sized for the budget as `objnerf train --time-budget` sizes it (a STEPS argument caps
+    // the passes the budget affords).
     let mut setup = SetupConfig {
         sh_degree: degree,
         time_budget: Some(secs),

@@ -46,8 +46,8 @@ pub struct SetupConfig {
     /// The training a run affords, in passes over its training pixels, from which a field
     /// with a colour network is sized as the large model: `large_net` (features, hidden
     /// units) at `large_voxels_per_pixel`. More parameters fit better only when there are the
-    /// steps to fit them: lego 200^2 in 300 s (~25 passes) 33.65 dB with the usual model,
-    /// 34.05 with the large one; in 60 s (~5 passes) the usual 32.40, the large network alone
+    /// steps to fit them: lego 200^2 in 300 s (~22 passes) 33.65 dB with the usual model,
+    /// 34.05 with the large one; in 60 s (~4.5 passes) the usual 32.40, the large network alone
     /// 31.96 (examples/results/field.md, "A larger model for a longer run").
     pub large_model_passes: f64,
     pub large_net: (usize, usize),
