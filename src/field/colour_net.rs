@@ -58,6 +58,9 @@ impl ColourNet {
     }
 
     /// RGB for inputs `x` ([features, direction terms]); the hidden activations go to `h`.
+    /// The whole network on one input, which the renderer splits per ray and per sample: kept
+    /// for the gradient test, which checks the two parts through it.
+    #[cfg(test)]
     pub fn forward(&self, x: &[f32], h: &mut [f32]) -> [f32; 3] {
         let mut bias = [0f32; MAX_HIDDEN];
         self.ray_bias(&x[self.features..self.inputs()], &mut bias);
@@ -97,7 +100,8 @@ impl ColourNet {
     }
 
     /// Backward of [`ColourNet::forward`] for dL/dRGB `g`: adds dL/dweights to `g_w` and writes
-    /// dL/dfeatures (the first `features` inputs) to `g_x`.
+    /// dL/dfeatures (the first `features` inputs) to `g_x`. For the gradient test, as `forward`.
+    #[cfg(test)]
     pub fn backward(
         &self,
         x: &[f32],
