@@ -20,7 +20,8 @@
 //! FIELD_LR_NET, FIELD_LARGE (passes over the pixels from which the large model is taken; FIELD_NET
 //! and FIELD_VPP turn it off), FIELD_NET_SH (SH degree of the network's view input), FIELD_PRUNE_ALPHA (cells
 //! less opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
-//! FIELD_BATCH, FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to `demo` too.
+//! FIELD_BATCH, FIELD_BETAS ("beta1,beta2": Adam's), FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to
+//! `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -40,7 +41,7 @@ fn pair(name: &str) -> Option<(f32, f32)> {
 }
 
 /// The overrides both benchmarks take: FIELD_BATCH, FIELD_LR, FIELD_LR_FINAL, FIELD_SEED,
-/// FIELD_RUN, FIELD_SPARSE, FIELD_PRUNE_ALPHA.
+/// FIELD_RUN, FIELD_BETAS, FIELD_SPARSE, FIELD_PRUNE_ALPHA.
 fn optimiser_overrides(cfg: &mut TrainConfig) {
     if let Some(v) = env("FIELD_BATCH") {
         cfg.batch = v;
@@ -49,13 +50,16 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
         (cfg.lr_density, cfg.lr_color) = (a, b);
     }
     if let Some(v) = env("FIELD_LR_FINAL") {
-        cfg.lr_final = v;
+        (cfg.lr_final, cfg.lr_final_network) = (v, v);
     }
     if let Some(v) = env("FIELD_SEED") {
         cfg.seed = v;
     }
     if let Some(v) = env("FIELD_RUN") {
         cfg.ray_run = v;
+    }
+    if let Some((a, b)) = pair("FIELD_BETAS") {
+        (cfg.beta1, cfg.beta2) = (a, b);
     }
     if let Some(v) = env("FIELD_SPARSE") {
         cfg.sparsity_weight = v;

@@ -176,9 +176,15 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
         field::prepare(&views, &[], &at_least(views.len() + 1), small_cfg(1)).expect("SH colour");
     assert!(t.field.net.is_none() && t.field.grid.channels == 13);
     assert!(report.why.contains("fewer than"), "{}", report.why);
-    let (t, _, _) =
-        field::prepare(&views, &[], &at_least(views.len()), small_cfg(1)).expect("a network");
+    // ... and so does the learning rates' decay: a network field's is shallower.
+    let cfg = small_cfg(1);
+    assert_eq!(t.cfg.lr_final, cfg.lr_final);
+    let (t, _, report) =
+        field::prepare(&views, &[], &at_least(views.len()), cfg.clone()).expect("a network");
     assert!(t.field.net.is_some());
+    assert_eq!(t.cfg.lr_final, cfg.lr_final_network);
+    assert_ne!(cfg.lr_final, cfg.lr_final_network);
+    assert!(report.why.contains("decay to"), "{}", report.why);
 }
 
 /// When the memory budget makes the first (dense) stage coarser than the schedule asks, the

@@ -35,6 +35,11 @@
 //!   features and 64 hidden units on a grid 1.3x finer: lego 200^2 in 300 s 33.65 -> 34.05 dB;
 //!   shorter runs keep the usual model, which fits sooner (`examples/results/field.md`, "A
 //!   larger model for a longer run").
+//! - **A shallower decay for a network field** (`TrainConfig::lr_final_network`, 0.1 of the
+//!   starting rates at the end, against 0.03 for SH fields): sparse Adam moves a vertex only
+//!   when a ray crosses it, at lego 800^2 about once in 200 steps, so a steep decay leaves the
+//!   late touches too small to finish the detail (`examples/results/field.md`, "Learning rates
+//!   that decay less").
 //! - **Density post-activated** as DVGO: interpolate the raw value, then softplus and alpha, so a
 //!   cell can hold a sharp surface; `delta` is in finest-voxel units so coarse-to-fine growth keeps
 //!   densities meaningful.

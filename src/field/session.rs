@@ -229,7 +229,14 @@ pub fn prepare(
     let setup = &setup;
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
-    let why = format!("{box_why}; {why}; colour: {colour}");
+    let mut why = format!("{box_why}; {why}; colour: {colour}");
+    if setup.net_features > 0 {
+        cfg.lr_final = cfg.lr_final_network;
+        why += &format!(
+            "; learning rates decay to {} of their start (a network field)",
+            cfg.lr_final
+        );
+    }
     let few_views = (views.len() < setup.fine_min_views).then(|| {
         format!(
             "{} views, fewer than the {} a finer finest grid needs",

@@ -23,6 +23,15 @@ pub struct TrainConfig {
     pub lr_net: f32,
     /// Learning rates fall to this fraction at `steps` (exponentially).
     pub lr_final: f32,
+    /// `lr_final` for an object field coloured by a network (seen from many views: lego). Its
+    /// sparse Adam touches a vertex only when a drawn ray crosses it: at lego 800^2 a surface
+    /// vertex about once in 200 steps, so each touch is a step of about the learning rate and
+    /// a steep decay leaves the late touches too small to finish the fine detail. Final
+    /// fraction 0.03 / 0.1 / 0.3: lego 800^2 in 300 s 31.94 / 32.27 / 32.56 dB, 200^2 in 60 s
+    /// 32.56 / 32.94 / 32.94, but 200^2 in 300 s (~22 passes over its pixels) 34.06 / 34.14 /
+    /// 33.71: a long run still wants the decay (examples/results/field.md, "Learning rates that
+    /// decay less"). The demo objects and fox (SH colour, fewer views) keep `lr_final`.
+    pub lr_final_network: f32,
     pub beta1: f32,
     pub beta2: f32,
     /// Total-variation weights (density, colour), applied to the voxels a batch touches.
@@ -96,6 +105,7 @@ impl Default for TrainConfig {
             // 12 features x 64 hidden: 1e-3 30.35 dB, 1e-2 31.08, 3e-2 31.18.
             lr_net: 0.03,
             lr_final: 0.03,
+            lr_final_network: 0.1,
             beta1: 0.9,
             beta2: 0.99,
             tv_density: 0.0,
