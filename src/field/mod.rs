@@ -100,6 +100,7 @@ pub mod holdout;
 pub mod hole;
 pub mod io;
 pub mod layout;
+pub mod live;
 pub mod model;
 mod occupancy;
 pub mod pattern;

@@ -10,6 +10,7 @@
 use super::activation::sigmoid;
 use super::colour_net::{ColourNet, MAX_HIDDEN};
 use super::grid::{Grid, BRICK, BRICK_VERTICES, NONE};
+use super::live::LiveBricks;
 use super::space::Space;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -43,6 +44,8 @@ pub struct Field {
     /// brick's vertices): the cell may hold density. A cell's 8 corners are always allocated
     /// when it is occupied; rays skip bricks whose word is 0.
     pub occupancy: Vec<u64>,
+    /// The bricks that hold an occupied cell, for the marcher (kept with `occupancy`).
+    pub(super) live: LiveBricks,
     /// Colour from features through a network ([`ColourNet`]) instead of SH coefficients: the
     /// channels are then [raw density, features].
     pub net: Option<ColourNet>,
@@ -136,6 +139,7 @@ impl Field {
             box_max,
             voxel,
             occupancy: Vec::new(),
+            live: LiveBricks::default(),
             grid,
             net: None,
         };
@@ -226,9 +230,7 @@ impl Field {
     /// Whether any cell of the brick holding cell `b` may hold density (rays skip it if not).
     #[inline]
     pub fn brick_occupied(&self, b: [usize; 3]) -> bool {
-        self.grid
-            .slot(b.map(|v| v / BRICK))
-            .is_some_and(|s| self.occupancy[s] != 0)
+        self.live.brick(b.map(|v| v / BRICK))
     }
 
     /// Set every cell of the box free or occupied (occupied needs every brick allocated).
@@ -252,6 +254,7 @@ impl Field {
                 self.occupancy[s] = word;
             }
         }
+        self.refresh_live_bricks();
     }
 
     /// Mark cell `b` occupied or free. Its corners' bricks must be allocated to occupy it.
@@ -262,6 +265,7 @@ impl Field {
         };
         if on {
             self.occupancy[s] |= 1 << l;
+            self.mark_live(b);
         } else {
             self.occupancy[s] &= !(1 << l);
         }

@@ -1,13 +1,41 @@
 //! The occupancy bitmap's upkeep during training: cells whose densest corner is too faint are
 //! dropped, then the bricks no occupied cell needs are released. Both work from the occupancy
 //! words, brick by brick (every 100 steps at lego 800^2 they walked ~4 M cells in a list, 11%
-//! of training).
+//! of training). [`LiveBricks`](super::live::LiveBricks) keeps the bricks that hold an occupied cell as a bitset for the
+//! marcher.
 
 use super::grid::{BRICK, NONE};
+use super::live::LiveBricks;
 use super::model::Field;
 use rayon::prelude::*;
 
 impl Field {
+    /// Rebuild [`Field::live`] from the occupancy words (after the grid or the words change
+    /// wholesale).
+    pub fn refresh_live_bricks(&mut self) {
+        let mut live = LiveBricks::new(self.grid.brick_dims);
+        for (s, &word) in self.occupancy.iter().enumerate() {
+            if word != 0 {
+                live.mark(self.grid.brick_of_slot(s));
+            }
+        }
+        self.live = live;
+    }
+
+    /// Mark the brick of cell `b` live (a cell was just occupied).
+    pub(super) fn mark_live(&mut self, b: [usize; 3]) {
+        if self.live.brick_dims != self.grid.brick_dims {
+            self.refresh_live_bricks();
+        }
+        self.live.mark(b.map(|v| v / BRICK));
+    }
+
+    /// Replace the occupancy words (one a grid slot, as [`Field::occupancy`]).
+    pub fn set_occupancy_words(&mut self, words: Vec<u64>) {
+        self.occupancy = words;
+        self.refresh_live_bricks();
+    }
+
     /// Drop the bricks no occupied cell needs. Returns the slot map ([`Grid::compact`]) when
     /// something was dropped, for state laid out like the grid to follow.
     ///
@@ -39,6 +67,7 @@ impl Field {
         }
         let map = self.grid.compact(&keep);
         super::grid::compact_buffer(&mut self.occupancy, &map, 1);
+        self.refresh_live_bricks();
         Some(map)
     }
 
@@ -80,7 +109,7 @@ impl Field {
                 keep
             })
             .collect();
-        self.occupancy = kept;
+        self.set_occupancy_words(kept);
     }
 }
 
@@ -112,6 +141,26 @@ const FAR_FACE_CELLS: [u64; 8] = {
 mod tests {
     use super::super::model::tests::unit_cube_field;
     use super::*;
+    use crate::field::live::BLOCK;
+
+    /// A brick is live exactly when its occupancy word is not 0, and a block when any of its
+    /// bricks is.
+    fn assert_live_bricks_follow_the_words(f: &Field) {
+        let bd = f.grid.brick_dims;
+        let mut blocks = std::collections::HashSet::new();
+        for i in 0..bd.iter().product::<usize>() {
+            let b = [i % bd[0], (i / bd[0]) % bd[1], i / (bd[0] * bd[1])];
+            let word = f.grid.slot(b).map_or(0, |s| f.occupancy[s]);
+            assert_eq!(f.live.brick(b), word != 0, "brick {b:?}");
+            if word != 0 {
+                blocks.insert(b.map(|v| v / BLOCK));
+            }
+        }
+        for i in 0..bd.iter().product::<usize>() {
+            let b = [i % bd[0], (i / bd[0]) % bd[1], i / (bd[0] * bd[1])];
+            assert_eq!(f.live.block(b), blocks.contains(&b.map(|v| v / BLOCK)));
+        }
+    }
 
     /// Pruning and releasing bricks from the occupancy words agree with the cell-by-cell rules:
     /// a cell stays while a corner is dense enough; a brick stays while a cell needs a vertex
@@ -150,6 +199,16 @@ mod tests {
         }
         assert!(f.grid.num_slots() < before.grid.num_slots());
         assert_eq!(f.occupied_cell_list(), expected);
+        assert_live_bricks_follow_the_words(&f);
+        // Emptied, then one cell occupied: its brick and block are live at once, and only they.
+        f.fill_occupancy(false);
+        assert_live_bricks_follow_the_words(&f);
+        let brick = [5, 4, 3];
+        let cell = brick.map(|v| v * BRICK);
+        f.occupy(&[cell]);
+        assert!(f.live.brick(brick) && f.live.block(brick) && f.occupied(cell));
+        assert!(!f.live.brick([4, 4, 3]) && !f.live.block([0, 0, 0]));
+        assert_live_bricks_follow_the_words(&f);
         // Every vertex an occupied cell reads is kept, with its value.
         for c in &expected {
             for i in 0..8 {

@@ -372,7 +372,7 @@ fn bricked_field(
     let mut field = empty_field(h);
     let fill = vec![0.0; h.channels];
     field.grid = Grid::from_parts(h.dims, h.channels, &fill, bricks, data)?;
-    field.occupancy = occupancy;
+    field.set_occupancy_words(occupancy);
     if let Some(n) = h.colour_net {
         let weights = arrays
             .f32s
@@ -455,6 +455,7 @@ fn empty_field(h: &Header) -> Field {
         voxel: h.voxel,
         grid: Grid::with_bricks(h.dims, h.channels, &vec![0.0; h.channels], |_| false),
         occupancy: Vec::new(),
+        live: Default::default(),
         net: None,
     }
 }
