@@ -49,7 +49,8 @@
 //!   corner is under 1% opaque a step are pruned (post-activation is monotone, so no point in
 //!   them is denser): that faint shell in front of the surfaces held 80% of a step's samples and
 //!   taught nothing (lego 200^2 in 60 s: 31.0 -> 32.3 dB; examples/results/field.md, "Pruning
-//!   the faint shell"). Empty bricks are jumped over.
+//!   the faint shell"). Empty bricks, and empty blocks of 4^3 bricks, are jumped over, asked of
+//!   a bitset small enough to stay in cache ([`live`]; lego 800^2: steps 8% faster, renders 21%).
 //! - **Segmented masks are trusted to within 2 px** ([`edge`]): SAM stops two rows short of the
 //!   demo mug's base in every view, and a field fitted to that mask as exact alpha has no base.
 //!   Band pixels whose colour argues against their mask (nearer the sure object's colours than

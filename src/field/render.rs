@@ -1,7 +1,8 @@
 //! Ray marching and volume rendering, forward and backward.
 //!
 //! A ray is clipped to the field's box and sampled every `step` voxels (a per-ray jitter in
-//! training). Samples in free cells (occupancy) are skipped without touching the grid, samples with
+//! training). Empty bricks and blocks of bricks ([`LiveBricks`](super::live::LiveBricks)) are
+//! jumped, samples in free cells (occupancy) are skipped without touching the grid, samples with
 //! alpha below `alpha_thresh` are dropped (DVGO's fast_color_thres), and marching stops once the
 //! transmittance falls below `term_thresh` (early termination).
 //!
