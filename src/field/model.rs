@@ -43,7 +43,8 @@ pub struct Field {
     /// Per grid slot, one bit per cell whose base vertex lies in that brick (x-fastest, as the
     /// brick's vertices): the cell may hold density. A cell's 8 corners are always allocated
     /// when it is occupied; rays skip bricks whose word is 0.
-    pub occupancy: Vec<u64>,
+    /// Private to the field's modules, which keep [`Field::live`] with it.
+    pub(super) occupancy: Vec<u64>,
     /// The bricks that hold an occupied cell, for the marcher (kept with `occupancy`).
     pub(super) live: LiveBricks,
     /// Colour from features through a network ([`ColourNet`]) instead of SH coefficients: the
@@ -269,6 +270,11 @@ impl Field {
         } else {
             self.occupancy[s] &= !(1 << l);
         }
+    }
+
+    /// The occupancy words, one a grid slot (see the field's doc).
+    pub fn occupancy_words(&self) -> &[u64] {
+        &self.occupancy
     }
 
     pub fn occupied_cells(&self) -> usize {

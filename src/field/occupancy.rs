@@ -1,8 +1,8 @@
 //! The occupancy bitmap's upkeep during training: cells whose densest corner is too faint are
 //! dropped, then the bricks no occupied cell needs are released. Both work from the occupancy
 //! words, brick by brick (every 100 steps at lego 800^2 they walked ~4 M cells in a list, 11%
-//! of training). [`LiveBricks`](super::live::LiveBricks) keeps the bricks that hold an occupied cell as a bitset for the
-//! marcher.
+//! of training). Every change of the words here also rebuilds the marcher's bitset of the
+//! bricks that hold an occupied cell ([`LiveBricks`]).
 
 use super::grid::{BRICK, NONE};
 use super::live::LiveBricks;
