@@ -1,8 +1,8 @@
 //! The occupancy bitmap's upkeep during training: cells whose densest corner is too faint are
 //! dropped, then the bricks no occupied cell needs are released. Both work from the occupancy
 //! words, brick by brick (every 100 steps at lego 800^2 they walked ~4 M cells in a list, 11%
-//! of training). Every change of the words here also rebuilds the marcher's bitset of the
-//! bricks that hold an occupied cell ([`LiveBricks`]).
+//! of training). Pruning rebuilds the marcher's bitset of the bricks that hold an occupied cell
+//! ([`LiveBricks`]); releasing leaves it as it is.
 
 use super::grid::{BRICK, NONE};
 use super::live::LiveBricks;
@@ -66,8 +66,9 @@ impl Field {
             return None;
         }
         let map = self.grid.compact(&keep);
+        // Only bricks with no occupied cell go, and the live bits are by brick coordinates,
+        // not slots: they stay as they are.
         super::grid::compact_buffer(&mut self.occupancy, &map, 1);
-        self.refresh_live_bricks();
         Some(map)
     }
 
