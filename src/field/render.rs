@@ -99,7 +99,7 @@ pub fn forward(
             for (t, x) in ContractedSteps::new(o, d, t0, center, radius, step, jitter) {
                 let p = (x - f.box_min) / f.voxel;
                 let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
-                if !m.block_occupied(b) {
+                if !f.brick_occupied(b) {
                     continue;
                 }
                 if !m.visit(b, fr, t) {
@@ -146,12 +146,6 @@ impl<'a> Marcher<'a> {
         }
     }
 
-    /// Whether the brick of cell base `b` holds any occupied cell.
-    #[inline]
-    fn block_occupied(&self, b: [usize; 3]) -> bool {
-        self.f.brick_occupied(b)
-    }
-
     /// A straight path in space: samples every `step` voxels from `s0 + jitter * step`; empty
     /// bricks are jumped over to the next sample of the same lattice.
     fn line(&mut self, o: Vec3, d: Vec3, s0: f32, s1: f32, depth: LineDepth, jitter: f32) {
@@ -169,7 +163,7 @@ impl<'a> Marcher<'a> {
         while t < s1 {
             let p = og + dg * t;
             let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
-            if !self.block_occupied(b) {
+            if !f.brick_occupied(b) {
                 // Jump to the first sample of the lattice t0 + k * step past this brick's exit
                 // (or its whole block's, when that is empty too), so the samples taken are the
                 // same as without skipping.
