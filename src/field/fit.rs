@@ -370,6 +370,10 @@ impl SceneFit {
             stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
             distortion_weight: opts.distortion_weight,
             prune_alpha: opts.prune_alpha,
+            // Measured on object fields only, whose targets are triangulated points; a scene
+            // field's plane-sweep targets can be off by more than the margin, which would carve
+            // true surfaces.
+            free_space_weight: 0.0,
             ..Default::default()
         };
         let seeds: Vec<(glam::Vec3, [u8; 3])> = scene

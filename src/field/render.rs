@@ -378,6 +378,23 @@ pub fn distortion(samples: &[Sample], unit: f32, delta: f32, g_w: &mut Vec<f32>)
     loss
 }
 
+/// The free-space loss over a ray's kept samples (in order along the ray): L = weight sum_i w_i
+/// over the samples nearer than `front`, the ray's depth target less a margin: the space between
+/// a camera and a point it sees is empty. Adds dL/dw_i into `g_w` (sized to the samples;
+/// zeros where it was empty) and returns L.
+pub fn free_space(samples: &[Sample], front: f32, weight: f32, g_w: &mut Vec<f32>) -> f32 {
+    g_w.resize(samples.len(), 0.0);
+    let mut seen = 0f32;
+    for (s, g) in samples.iter().zip(g_w.iter_mut()) {
+        if s.t >= front {
+            break;
+        }
+        seen += s.trans * s.alpha;
+        *g += weight;
+    }
+    weight * seen
+}
+
 /// Render one ray without recording (for images).
 pub fn render_ray(
     f: &Field,
@@ -536,11 +553,14 @@ mod tests {
             let bg = [0.2, 0.5, 0.9];
             let mut samples = Vec::new();
             forward(&f0, &opt, o, d, 0.3, bg, &mut samples);
-            assert!(!samples.is_empty());
+            assert!(samples.len() > 2);
             // The linear functional plus the distortion loss (weight DIST), in base-voxel units,
-            // and the sparsity loss (weight SPARSE).
+            // the sparsity loss (weight SPARSE) and the free-space loss (weight FREE) on the
+            // nearer half of the samples.
             const DIST: f32 = 0.5;
             const SPARSE: f32 = 0.3;
+            const FREE: f32 = 0.4;
+            let front = samples[samples.len() / 2].t;
             let delta = opt.step * f0.voxel / f0.config.base_voxel;
             let unit = f0.config.base_voxel;
             let total = |f: &Field| {
@@ -550,10 +570,12 @@ mod tests {
                 loss(&out)
                     + (DIST * distortion(&s, unit, delta, &mut Vec::new())) as f64
                     + (SPARSE * sparsity) as f64
+                    + free_space(&s, front, FREE, &mut Vec::new()) as f64
             };
             let mut g_w = Vec::new();
             distortion(&samples, unit, delta, &mut g_w);
             g_w.iter_mut().for_each(|g| *g *= DIST);
+            free_space(&samples, front, FREE, &mut g_w);
             let ch = f0.grid.channels;
             let mut grad = vec![0f32; f0.grid.data.len()];
             let nx = f0.grid.dims[0] as u32;

@@ -3,7 +3,7 @@
 
 use super::super::grid::BRICK;
 use super::super::model::Field;
-use super::super::render::{backward, distortion, forward, RayGrad, RayOut, Sample};
+use super::super::render::{backward, distortion, forward, free_space, RayGrad, RayOut, Sample};
 use super::super::view::{EdgePixel, View};
 use super::config::TrainConfig;
 use crate::util::Rng;
@@ -84,6 +84,12 @@ impl StepContext<'_> {
                 loss += (cfg.distortion_weight * dl) as f64;
                 let k = cfg.distortion_weight * self.inv_b;
                 g_w.iter_mut().for_each(|g| *g *= k);
+            }
+            let target = view.depth.as_ref().map_or(0.0, |d| d[px as usize]);
+            if cfg.free_space_weight > 0.0 && target > 0.0 {
+                let front = target - cfg.free_space_margin * unit;
+                let k = cfg.free_space_weight * self.inv_b;
+                loss += (free_space(&samples, front, k, &mut g_w) / self.inv_b) as f64;
             }
             if cfg.sparsity_weight > 0.0 {
                 let kept: f32 = samples.iter().map(|s| s.alpha).sum();
