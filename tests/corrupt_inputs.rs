@@ -327,7 +327,7 @@ fn objf(path: &Path) {
             world_transform: io::IDENTITY,
             train: None,
             step: 1,
-            adam: Some((&zeros, &zeros, 1)),
+            adam: Some((io::Moments::F32(&zeros), io::Moments::F32(&zeros), 1)),
             net_adam: None,
             notes: serde_json::json!({}),
         },

@@ -68,9 +68,9 @@ pub struct SetupConfig {
 }
 
 impl SetupConfig {
-    /// Grid bytes per vertex: parameters, gradient, Adam m and v, plus the touch stamp.
+    /// Training memory per grid vertex ([`super::train::bytes_per_vertex`]).
     pub fn bytes_per_vertex(&self) -> usize {
-        self.channels() * 16 + 4
+        super::train::bytes_per_vertex(self.channels())
     }
 
     /// Whether the colour settings can be built: a clear error, not a panic, for user input.

@@ -3,6 +3,7 @@
 //! the self-checks' warnings.
 
 pub mod atomic;
+pub mod bf16;
 pub mod chart;
 pub mod choice;
 pub mod digest;

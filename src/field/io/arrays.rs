@@ -2,6 +2,7 @@
 //! stream, each checked against its length (before anything is allocated) and hash.
 
 use crate::error::{Error, Result};
+use crate::util::bf16::from_bf16;
 use crate::util::digest::hex;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -19,13 +20,15 @@ pub struct ArrayInfo {
 /// An array to write, as its values; turned into little-endian bytes a chunk at a time.
 pub(super) enum Blob<'a> {
     F32(&'a [f32]),
+    /// bfloat16 values written as f32 (a chunk at a time: no f32 copy of the whole array).
+    F32FromBf16(&'a [u16]),
     U64(&'a [u64]),
 }
 
 impl Blob<'_> {
     pub(super) fn dtype(&self) -> &'static str {
         match self {
-            Blob::F32(_) => "f32",
+            Blob::F32(_) | Blob::F32FromBf16(_) => "f32",
             Blob::U64(_) => "u64",
         }
     }
@@ -33,6 +36,7 @@ impl Blob<'_> {
     pub(super) fn len(&self) -> usize {
         match self {
             Blob::F32(v) => v.len(),
+            Blob::F32FromBf16(v) => v.len(),
             Blob::U64(v) => v.len(),
         }
     }
@@ -48,6 +52,13 @@ impl Blob<'_> {
                 for c in v.chunks(N) {
                     buf.clear();
                     buf.extend(c.iter().flat_map(|x| x.to_le_bytes()));
+                    f(&buf)?;
+                }
+            }
+            Blob::F32FromBf16(v) => {
+                for c in v.chunks(N) {
+                    buf.clear();
+                    buf.extend(c.iter().flat_map(|&x| from_bf16(x).to_le_bytes()));
                     f(&buf)?;
                 }
             }

@@ -117,9 +117,26 @@ pub struct ModelParts<'a> {
     pub world_transform: [[f64; 4]; 4],
     pub train: Option<&'a TrainConfig>,
     pub step: usize,
-    pub adam: Option<(&'a [f32], &'a [f32], u32)>,
+    pub adam: Option<(Moments<'a>, Moments<'a>, u32)>,
     pub net_adam: Option<(&'a [f32], &'a [f32], u32)>,
     pub notes: serde_json::Value,
+}
+
+/// Adam's m or v as the trainer keeps them (bfloat16) or as a loaded model holds them (f32);
+/// the file stores f32 either way.
+#[derive(Clone, Copy)]
+pub enum Moments<'a> {
+    F32(&'a [f32]),
+    Bf16(&'a [u16]),
+}
+
+impl<'a> Moments<'a> {
+    fn blob(self) -> Blob<'a> {
+        match self {
+            Moments::F32(v) => Blob::F32(v),
+            Moments::Bf16(v) => Blob::F32FromBf16(v),
+        }
+    }
 }
 
 impl Model {
@@ -130,7 +147,10 @@ impl Model {
             world_transform: self.world_transform,
             train: self.train.as_ref(),
             step: self.step,
-            adam: self.adam.as_ref().map(|(m, v, t)| (&m[..], &v[..], *t)),
+            adam: self
+                .adam
+                .as_ref()
+                .map(|(m, v, t)| (Moments::F32(m), Moments::F32(v), *t)),
             net_adam: self.net_adam.as_ref().map(|(m, v, t)| (&m[..], &v[..], *t)),
             notes: self.notes.clone(),
         }
@@ -187,7 +207,10 @@ impl Trainer {
             world_transform: world,
             train: Some(&self.cfg),
             step: self.step,
-            adam: Some(self.adam_state()),
+            adam: Some({
+                let (m, v, t) = self.adam_state();
+                (Moments::Bf16(m), Moments::Bf16(v), t)
+            }),
             net_adam: self.net_adam_state(),
             notes,
         }
@@ -206,8 +229,8 @@ pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
         blobs.push(("colour_net", Blob::F32(&net.weights)));
     }
     if let Some((am, av, _)) = m.adam {
-        blobs.push(("adam_m", Blob::F32(am)));
-        blobs.push(("adam_v", Blob::F32(av)));
+        blobs.push(("adam_m", am.blob()));
+        blobs.push(("adam_v", av.blob()));
     }
     if let Some((nm, nv, _)) = m.net_adam {
         blobs.push(("adam_net_m", Blob::F32(nm)));

@@ -19,6 +19,7 @@ use super::model::Field;
 use super::rays::RaySet;
 use super::render::forward;
 use super::view::View;
+use crate::util::bf16::to_bf16;
 use crate::util::Rng;
 use config::AUTO_RAY_RUN_BYTES;
 use optim::{split_by, AdamStep, SlabScatter, Slabs};
@@ -34,6 +35,12 @@ const CARVE_BAND: f32 = 0.02;
 /// work; each adds a record list per chunk and duplicates the records of cells on its border).
 const SLABS_PER_THREAD: usize = 4;
 
+/// Training memory per grid vertex of `channels`: each value and its gradient in f32, Adam's m
+/// and v in bfloat16 ([`crate::util::bf16`]), and the touch stamp.
+pub fn bytes_per_vertex(channels: usize) -> usize {
+    channels * (4 + 4 + 2 + 2) + 4
+}
+
 /// Optimiser state and the buffers of one training run.
 pub struct Trainer {
     pub field: Field,
@@ -42,8 +49,8 @@ pub struct Trainer {
     pub final_dims: [usize; 3],
     pub step: usize,
     grad: Vec<f32>,
-    m: Vec<f32>,
-    v: Vec<f32>,
+    m: Vec<u16>,
+    v: Vec<u16>,
     /// Step (+1) at which a vertex was last touched, to list touched vertices without clearing.
     stamp: Vec<u32>,
     adam_t: u32,
@@ -135,8 +142,8 @@ impl Trainer {
     fn reset_state(&mut self) {
         let n = self.field.grid.data.len();
         self.grad = vec![0.0; n];
-        self.m = vec![0.0; n];
-        self.v = vec![0.0; n];
+        self.m = vec![0; n];
+        self.v = vec![0; n];
         self.stamp = vec![0; self.field.grid.num_vertices()];
         self.adam_t = 0;
     }
@@ -162,16 +169,16 @@ impl Trainer {
         opened
     }
 
-    /// Optimiser state (m, v, step count) for saving a resumable model.
-    pub fn adam_state(&self) -> (&[f32], &[f32], u32) {
+    /// Optimiser state (m, v as bfloat16, step count) for saving a resumable model.
+    pub fn adam_state(&self) -> (&[u16], &[u16], u32) {
         (&self.m, &self.v, self.adam_t)
     }
 
-    /// Restore optimiser state saved with [`Trainer::adam_state`].
+    /// Restore optimiser state saved with [`Trainer::adam_state`] (the file holds f32).
     pub fn set_adam_state(&mut self, m: Vec<f32>, v: Vec<f32>, t: u32) {
         if m.len() == self.grad.len() && v.len() == self.grad.len() {
-            self.m = m;
-            self.v = v;
+            self.m = m.into_iter().map(to_bf16).collect();
+            self.v = v.into_iter().map(to_bf16).collect();
             self.adam_t = t;
         }
     }
@@ -192,7 +199,8 @@ impl Trainer {
     /// Bytes of parameters and optimiser state.
     pub fn memory_bytes(&self) -> usize {
         self.field.param_bytes()
-            + (self.grad.len() + self.m.len() + self.v.len()) * 4
+            + self.grad.len() * 4
+            + (self.m.len() + self.v.len()) * 2
             + self.stamp.len() * 4
     }
 
@@ -302,7 +310,7 @@ impl Trainer {
     /// The finest grid the budget allows: `planned`, or coarser until the bricks its occupied
     /// cells need fit (never below the current grid).
     fn fit_finest(&mut self, planned: [usize; 3]) -> [usize; 3] {
-        let per_brick = BRICK_VERTICES * (self.field.grid.channels * 16 + 4);
+        let per_brick = BRICK_VERTICES * bytes_per_vertex(self.field.grid.channels);
         let current = self.field.grid.dims;
         let mut dims = planned;
         let mut bricks = self.field.bricks_at(dims);

@@ -3,19 +3,20 @@
 //! touched vertices.
 
 use super::super::grid::{Corners, Grid, NONE};
+use crate::util::bf16::{from_bf16, to_bf16};
 
 /// How many listed vertices ahead [`AdamStep::apply`] prefetches.
 pub(super) const PREFETCH_AHEAD: usize = 8;
 
 /// Ask for the cache line holding `buf[i]` (a hint: no effect on results; nothing off x86-64).
 #[inline(always)]
-pub(super) fn prefetch(buf: &[f32], i: usize) {
+pub(super) fn prefetch<T>(buf: &[T], i: usize) {
     #[cfg(target_arch = "x86_64")]
     if let Some(x) = buf.get(i) {
         // SAFETY: a prefetch hint reads nothing and cannot fault; the pointer is in bounds.
         unsafe {
             std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                (x as *const f32).cast(),
+                (x as *const T).cast(),
             )
         };
     }
@@ -42,8 +43,8 @@ impl AdamStep {
         &self,
         p: &mut [f32],
         g: &mut [f32],
-        m: &mut [f32],
-        v: &mut [f32],
+        m: &mut [u16],
+        v: &mut [u16],
         list: &[u32],
         v0: usize,
         ch: usize,
@@ -58,7 +59,11 @@ impl AdamStep {
             // follow: fetch the values a few vertices ahead.
             if let Some(&ahead) = list.get(k + PREFETCH_AHEAD) {
                 let o = (ahead as usize - v0) * ch;
-                for buf in [&*p, &*g, &*m, &*v] {
+                for buf in [&*p, &*g] {
+                    prefetch(buf, o);
+                    prefetch(buf, o + ch - 1);
+                }
+                for buf in [&*m, &*v] {
                     prefetch(buf, o);
                     prefetch(buf, o + ch - 1);
                 }
@@ -97,8 +102,8 @@ impl AdamStep {
         &self,
         p: &mut [f32],
         g: &mut [f32],
-        m: &mut [f32],
-        v: &mut [f32],
+        m: &mut [u16],
+        v: &mut [u16],
         rate: f32,
         eps: f32,
     ) {
@@ -111,9 +116,11 @@ impl AdamStep {
         {
             let gj = *g;
             *g = 0.0;
-            *m = b1 * *m + (1.0 - b1) * gj;
-            *v = b2 * *v + (1.0 - b2) * gj * gj;
-            *p -= rate * *m / (v.sqrt() + eps);
+            let mj = b1 * from_bf16(*m) + (1.0 - b1) * gj;
+            let vj = b2 * from_bf16(*v) + (1.0 - b2) * gj * gj;
+            *m = to_bf16(mj);
+            *v = to_bf16(vj);
+            *p -= rate * mj / (vj.sqrt() + eps);
         }
     }
 }
