@@ -127,7 +127,7 @@ impl Default for TrainConfig {
             sparsity_weight: 0.0,
             // Measured on `objnerf demo` (sparse depth from the object's points; held-out PSNR,
             // mesh Chamfer, training seconds) without -> with it: mug 33.60 -> 33.93 dB, 1.66 ->
-            // 1.53%, 23 -> 13 s; sphere 35.83 -> 36.30; box 33.48 -> 34.73; torus 36.40 -> 36.38
+            // 1.54%, 24 -> 13 s; sphere 35.83 -> 36.30; box 33.48 -> 34.73; torus 36.40 -> 36.38
             // (examples/results/field.md, "Free space in front of the sparse points").
             free_space_weight: 1.0,
             free_space_margin: 3.0,
