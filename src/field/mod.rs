@@ -89,7 +89,7 @@
 //! - **Depth loss on the normalised depth** (sum w t / sum w) in finest-voxel units: the
 //!   unnormalised sum reads a 0.5% opacity deficit at 2 m as a 1 cm error, and in metres a 1 cm
 //!   error squared is too small to matter next to the colour loss.
-//! - **Free space in front of depth targets** (object fields): the weight a ray puts more than 3
+//! - **Free space in front of the sparse points** (object fields, `--depth sparse`): the weight a ray puts more than 3
 //!   voxels nearer than its target is penalised, since a camera sees the point through empty
 //!   space. Colour alone leaves faint matter there; with it the demo objects' held-out PSNR moved
 //!   -0.02 to +1.25 dB and training took 0.55-0.75 of the time (fewer samples a ray).
