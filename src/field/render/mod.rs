@@ -59,10 +59,11 @@ pub struct Sample {
 }
 
 /// Weight (T alpha) below which a network-coloured sample gets no colour, at a step of one
-/// voxel (training's); [`Marcher`] scales it with the step, since a sample's weight in a
+/// voxel (training's). The marcher scales it with the step, since a sample's weight in a
 /// surface does: with the weight fixed, rendering lego 800^2's 20-minute model every quarter
 /// voxel left more of each surface's samples uncoloured (black) and scored 33.95 dB against
-/// 34.19 with every sample coloured (examples/results/field.md, "Finer steps than training's").
+/// 34.19 with every sample coloured (examples/results/field.md, "The finest stage sooner;
+/// colour threshold and step").
 pub const NET_MIN_WEIGHT: f32 = 3e-3;
 
 /// The result of one ray.
