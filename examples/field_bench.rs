@@ -19,9 +19,9 @@
 //! FIELD_SEED, FIELD_NET ("features,hidden": colour network at any view count; "0,0": SH),
 //! FIELD_LR_NET, FIELD_LARGE (passes over the pixels from which the large model is taken; FIELD_NET
 //! and FIELD_VPP turn it off), FIELD_NET_SH (SH degree of the network's view input), FIELD_PRUNE_ALPHA (cells
-//! less opaque than this a step are pruned); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN,
-//! FIELD_BATCH, FIELD_BETAS ("beta1,beta2": Adam's), FIELD_SPARSE and FIELD_PRUNE_ALPHA apply to
-//! `demo` too.
+//! less opaque than this a step are pruned), FIELD_DIST (distortion loss weight, distances in
+//! finest voxels); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_BATCH, FIELD_BETAS
+//! ("beta1,beta2": Adam's), FIELD_SPARSE, FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -41,7 +41,7 @@ fn pair(name: &str) -> Option<(f32, f32)> {
 }
 
 /// The overrides both benchmarks take: FIELD_BATCH, FIELD_LR, FIELD_LR_FINAL, FIELD_SEED,
-/// FIELD_RUN, FIELD_BETAS, FIELD_SPARSE, FIELD_PRUNE_ALPHA.
+/// FIELD_RUN, FIELD_BETAS, FIELD_SPARSE, FIELD_PRUNE_ALPHA, FIELD_DIST.
 fn optimiser_overrides(cfg: &mut TrainConfig) {
     if let Some(v) = env("FIELD_BATCH") {
         cfg.batch = v;
@@ -66,6 +66,9 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
     }
     if let Some(v) = env("FIELD_PRUNE_ALPHA") {
         cfg.prune_alpha = v;
+    }
+    if let Some(v) = env("FIELD_DIST") {
+        cfg.distortion_weight = v;
     }
 }
 
