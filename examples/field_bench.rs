@@ -21,7 +21,8 @@
 //! and FIELD_VPP turn it off), FIELD_NET_SH (SH degree of the network's view input), FIELD_PRUNE_ALPHA (cells
 //! less opaque than this a step are pruned), FIELD_DIST (distortion loss weight, distances in
 //! finest voxels); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_BATCH, FIELD_BETAS
-//! ("beta1,beta2": Adam's), FIELD_SPARSE, FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
+//! ("beta1,beta2": Adam's), FIELD_NET_REFLECT (1: the network also takes the reflected view
+//! direction), FIELD_NET_HIDDEN2 (units of a second hidden layer), FIELD_SPARSE, FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -89,6 +90,12 @@ fn net_overrides(setup: &mut SetupConfig, cfg: &mut TrainConfig) {
     }
     if let Some(v) = env("FIELD_NET_SH") {
         setup.net_sh_degree = v;
+    }
+    if let Some(v) = env::<u32>("FIELD_NET_REFLECT") {
+        setup.net_reflect = v != 0;
+    }
+    if let Some(v) = env("FIELD_NET_HIDDEN2") {
+        setup.net_hidden2 = v;
     }
 }
 
@@ -256,6 +263,7 @@ fn main() -> objnerf::Result<()> {
         "phase_secs": trainer.phase_secs,
         "memory_mb": trainer.memory_bytes() as f64 / 1048576.0, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
+        "test_views": ev.views,
     });
     println!("{out}");
     if let Some(i) = args.iter().position(|a| a == "--json") {

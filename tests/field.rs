@@ -153,6 +153,18 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
         resumed.train_step(&views, &rays);
     }
     assert!(resumed.field == whole.field, "resumed run diverged");
+    // With the reflected view direction as an input too: trained, saved and loaded whole.
+    let reflect = SetupConfig {
+        net_reflect: true,
+        ..net_setup()
+    };
+    let r = train_with(&views, &reflect, small_cfg(5), 5);
+    assert_eq!(r.field.net.as_ref().map(|n| n.refl_terms), Some(16));
+    io::save(&path, &r.parts(io::IDENTITY, serde_json::Value::Null)).unwrap();
+    assert!(
+        io::load(&path).unwrap().field == r.field,
+        "the reflecting network differs"
+    );
     // Learns: the same bar as SH colour's short run below.
     let t = train_with(&views, &net_setup(), small_cfg(150), 150);
     let ev = field::eval::evaluate(&t.field, &t.cfg.render, &test);

@@ -1,6 +1,10 @@
 //! Colour from a feature grid through a small network (DVGO's colour): each vertex holds
 //! `features` values beside its density; a sample's interpolated features and the spherical-
 //! harmonic basis of its view direction go through one hidden ReLU layer to RGB (sigmoid).
+//! Optionally the basis of the view direction reflected about the density's normal joins them
+//! (Ref-NeRF's reflected direction): a highlight then sits where the reflection points, which
+//! the network can share across the points of a glossy part, rather than where the views it was
+//! trained on saw it. Optionally a second hidden layer follows the first (DVGO's has two).
 //!
 //! The network is shared by every sample, so its gradient is summed over a batch (per chunk of
 //! rays, then in chunk order: deterministic) and stepped with its own Adam
@@ -9,9 +13,13 @@
 use super::activation::sigmoid;
 use crate::util::Rng;
 
-/// The most inputs (features + direction terms) and hidden units the render buffers hold.
-pub const MAX_INPUTS: usize = 40;
+/// The most inputs (features + direction and reflection terms) and hidden units a network
+/// takes: a grid's features (at most 27) and two degree-3 bases.
+pub const MAX_INPUTS: usize = 59;
+/// The most units of each hidden layer.
 pub const MAX_HIDDEN: usize = 128;
+/// The hidden activations a sample keeps for its backward: both layers'.
+pub const MAX_ACTIVATIONS: usize = 2 * MAX_HIDDEN;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct ColourNet {
@@ -19,59 +27,100 @@ pub struct ColourNet {
     pub features: usize,
     /// Direction terms: the SH basis of the view direction to the field's degree.
     pub dir_terms: usize,
+    /// Reflection terms: the SH basis of the reflected view direction ([`reflect`]); 0: none.
+    pub refl_terms: usize,
     pub hidden: usize,
-    /// W1 (inputs x hidden, input-major), b1 (hidden), W2 (3 x hidden), b2 (3).
+    /// Units of the second hidden layer; 0: none (the output reads the first).
+    pub hidden2: usize,
+    /// W1 (inputs x hidden, input-major; rows: features, direction, reflection), b1 (hidden),
+    /// then with a second layer Wm (hidden x hidden2, input-major) and bm (hidden2), then
+    /// Wout (3 x the last layer's units) and bout (3).
     pub weights: Vec<f32>,
 }
 
 impl ColourNet {
     /// A network with uniform He initialisation (seeded) and zero biases: with the features at
     /// zero it starts near grey, as a fresh SH grid does.
-    pub fn new(features: usize, dir_terms: usize, hidden: usize, seed: u64) -> ColourNet {
-        assert!(features + dir_terms <= MAX_INPUTS && hidden <= MAX_HIDDEN && hidden > 0);
-        let inputs = features + dir_terms;
+    pub fn new(
+        features: usize,
+        dir_terms: usize,
+        refl_terms: usize,
+        [hidden, hidden2]: [usize; 2],
+        seed: u64,
+    ) -> ColourNet {
+        let inputs = features + dir_terms + refl_terms;
+        assert!(inputs <= MAX_INPUTS && hidden <= MAX_HIDDEN && hidden > 0);
+        assert!(hidden2 <= MAX_HIDDEN);
         let mut net = ColourNet {
             features,
             dir_terms,
+            refl_terms,
             hidden,
-            weights: vec![0.0; Self::weight_count(inputs, hidden)],
+            hidden2,
+            weights: vec![0.0; Self::weight_count(inputs, hidden, hidden2)],
         };
         let mut r = Rng::new(seed ^ 0xC0_10_0E);
-        let a1 = (6.0 / inputs as f32).sqrt();
-        let a2 = (6.0 / hidden as f32).sqrt() * 0.1;
-        let (w1, w2) = (inputs * hidden, inputs * hidden + hidden);
-        for w in &mut net.weights[..w1] {
-            *w = (2.0 * r.f32() - 1.0) * a1;
+        let mut uniform = |ws: &mut [f32], a: f32| {
+            ws.iter_mut().for_each(|w| *w = (2.0 * r.f32() - 1.0) * a);
+        };
+        let last = net.last_units();
+        let (w1, mid, out) = net.offsets();
+        uniform(&mut net.weights[..w1], (6.0 / inputs as f32).sqrt());
+        if hidden2 > 0 {
+            uniform(
+                &mut net.weights[mid..mid + hidden * hidden2],
+                (6.0 / hidden as f32).sqrt(),
+            );
         }
-        for w in &mut net.weights[w2..w2 + 3 * hidden] {
-            *w = (2.0 * r.f32() - 1.0) * a2;
-        }
+        uniform(
+            &mut net.weights[out..out + 3 * last],
+            (6.0 / last as f32).sqrt() * 0.1,
+        );
         net
     }
 
-    pub fn weight_count(inputs: usize, hidden: usize) -> usize {
-        inputs * hidden + hidden + 3 * hidden + 3
+    pub fn weight_count(inputs: usize, hidden: usize, hidden2: usize) -> usize {
+        let last = if hidden2 > 0 { hidden2 } else { hidden };
+        inputs * hidden + hidden + hidden * hidden2 + hidden2 + 3 * last + 3
+    }
+
+    /// Units of the layer the output reads.
+    fn last_units(&self) -> usize {
+        if self.hidden2 > 0 {
+            self.hidden2
+        } else {
+            self.hidden
+        }
+    }
+
+    /// Where b1, Wm and Wout start in `weights`.
+    fn offsets(&self) -> (usize, usize, usize) {
+        let (nh, nh2) = (self.hidden, self.hidden2);
+        let b1 = self.inputs() * nh;
+        (b1, b1 + nh, b1 + nh + nh * nh2 + nh2)
     }
 
     pub fn inputs(&self) -> usize {
-        self.features + self.dir_terms
+        self.features + self.dir_terms + self.refl_terms
     }
 
-    /// RGB for inputs `x` ([features, direction terms]); the hidden activations go to `h`.
+    /// RGB for inputs `x` ([features, direction terms, reflection terms]); the hidden
+    /// activations go to `h`.
     /// The whole network on one input, which the renderer splits per ray and per sample: kept
     /// for the gradient test, which checks the two parts through it.
     #[cfg(test)]
     pub fn forward(&self, x: &[f32], h: &mut [f32]) -> [f32; 3] {
         let mut bias = [0f32; MAX_HIDDEN];
-        self.ray_bias(&x[self.features..self.inputs()], &mut bias);
-        self.forward_features(&x[..self.features], &bias, h)
+        let (nf, nd) = (self.features, self.dir_terms);
+        self.ray_bias(&x[nf..nf + nd], &mut bias);
+        self.forward_features(&x[..nf], &x[nf + nd..self.inputs()], &bias, h)
     }
 
     /// The hidden units' pre-activation from the biases and the direction terms `dir`, which
     /// every sample of a ray shares: computed once a ray, it leaves a sample only its features'
     /// rows of W1 (8 of 24 at the default size).
     pub fn ray_bias(&self, dir: &[f32], bias: &mut [f32]) {
-        let (w1, b1, _, _) = self.parts();
+        let (w1, b1, ..) = self.parts();
         let (nf, nh) = (self.features, self.hidden);
         let bias = &mut bias[..nh];
         bias.copy_from_slice(b1);
@@ -83,20 +132,45 @@ impl ColourNet {
         }
     }
 
-    /// RGB for a sample's `features` on a ray whose [`ColourNet::ray_bias`] is `bias`; the
-    /// hidden activations go to `h`.
+    /// RGB for a sample's `features` and reflection terms `refl` (empty without them) on a
+    /// ray whose [`ColourNet::ray_bias`] is `bias`; the hidden activations go to `h` (the
+    /// first layer's, then the second's).
     #[inline]
-    pub fn forward_features(&self, features: &[f32], bias: &[f32], h: &mut [f32]) -> [f32; 3] {
-        let (w1, _, w2, b2) = self.parts();
-        let nh = self.hidden;
-        let h = &mut h[..nh];
+    pub fn forward_features(
+        &self,
+        features: &[f32],
+        refl: &[f32],
+        bias: &[f32],
+        h: &mut [f32],
+    ) -> [f32; 3] {
+        let (w1, _, wm, bm, wo, bo) = self.parts();
+        let (nh, nh2) = (self.hidden, self.hidden2);
+        let (h, h2) = h.split_at_mut(nh);
         h.copy_from_slice(&bias[..nh]);
         // Input-major W1: each input adds a scaled row to every hidden unit (vectorises).
         for (xi, row) in features[..self.features].iter().zip(w1.chunks_exact(nh)) {
             h.iter_mut().zip(row).for_each(|(a, w)| *a += xi * w);
         }
+        let refl_rows = &w1[(self.features + self.dir_terms) * nh..];
+        for (xi, row) in refl[..self.refl_terms]
+            .iter()
+            .zip(refl_rows.chunks_exact(nh))
+        {
+            h.iter_mut().zip(row).for_each(|(a, w)| *a += xi * w);
+        }
         h.iter_mut().for_each(|a| *a = a.max(0.0));
-        [0, 1, 2].map(|c| sigmoid(b2[c] + dot(&w2[c * nh..(c + 1) * nh], h)))
+        if nh2 == 0 {
+            return [0, 1, 2].map(|c| sigmoid(bo[c] + dot(&wo[c * nh..(c + 1) * nh], h)));
+        }
+        let h2 = &mut h2[..nh2];
+        h2.copy_from_slice(bm);
+        for (xi, row) in h.iter().zip(wm.chunks_exact(nh2)) {
+            if *xi > 0.0 {
+                h2.iter_mut().zip(row).for_each(|(a, w)| *a += xi * w);
+            }
+        }
+        h2.iter_mut().for_each(|a| *a = a.max(0.0));
+        [0, 1, 2].map(|c| sigmoid(bo[c] + dot(&wo[c * nh2..(c + 1) * nh2], h2)))
     }
 
     /// Backward of [`ColourNet::forward`] for dL/dRGB `g`: adds dL/dweights to `g_w` and writes
@@ -112,18 +186,23 @@ impl ColourNet {
         g_w: &mut [f32],
     ) {
         let mut g_bias = [0f32; MAX_HIDDEN];
-        self.backward_features(&x[..self.features], h, rgb, g, g_x, g_w, &mut g_bias);
-        self.backward_ray(&x[self.features..self.inputs()], &g_bias, g_w);
+        let (nf, nd) = (self.features, self.dir_terms);
+        let refl = &x[nf + nd..self.inputs()];
+        self.backward_features(&x[..nf], refl, h, rgb, g, g_x, g_w, &mut g_bias);
+        self.backward_ray(&x[nf..nf + nd], &g_bias, g_w);
     }
 
-    /// Backward of [`ColourNet::forward_features`] for dL/dRGB `g`: adds dL/dweights of W2, b2
-    /// and W1's feature rows to `g_w`, writes dL/dfeatures to `g_x`, and adds dL/d(ray bias)
-    /// to `g_bias`, which [`ColourNet::backward_ray`] turns into the rest once a ray.
+    /// Backward of [`ColourNet::forward_features`] for dL/dRGB `g`: adds dL/dweights of the
+    /// output and second layers and of W1's feature and reflection rows to `g_w`, writes dL/dfeatures to `g_x`, and adds
+    /// dL/d(ray bias) to `g_bias`, which [`ColourNet::backward_ray`] turns into the rest once a
+    /// ray. The reflection terms get no gradient: the normal they come from is held fixed, as
+    /// the density's own losses shape it.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub fn backward_features(
         &self,
         features: &[f32],
+        refl: &[f32],
         h: &[f32],
         rgb: [f32; 3],
         g: [f32; 3],
@@ -131,28 +210,45 @@ impl ColourNet {
         g_w: &mut [f32],
         g_bias: &mut [f32],
     ) {
-        let (ni, nh, nf) = (self.inputs(), self.hidden, self.features);
-        let (w1, _, w2, _) = self.parts();
+        let (ni, nh, nh2, nf) = (self.inputs(), self.hidden, self.hidden2, self.features);
+        let (w1, _, wm, _, wo, _) = self.parts();
         let go = [0, 1, 2].map(|c| g[c] * rgb[c] * (1.0 - rgb[c]));
         let (gw1, rest) = g_w.split_at_mut(ni * nh);
         let (_, rest) = rest.split_at_mut(nh);
-        let (gw2, gb2) = rest.split_at_mut(3 * nh);
-        let h = &h[..nh];
+        let (gwm, rest) = rest.split_at_mut(nh * nh2);
+        let (gbm, rest) = rest.split_at_mut(nh2);
+        let nl = self.last_units();
+        let (gwo, gbo) = rest.split_at_mut(3 * nl);
+        let (h, h2) = h.split_at(nh);
+        let last = if nh2 > 0 { &h2[..nh2] } else { h };
+        // dL/d(the last layer's pre-activation).
+        let mut dl = [0f32; MAX_HIDDEN];
+        let dl = &mut dl[..nl];
+        for c in 0..3 {
+            gbo[c] += go[c];
+            let (gw, w) = (&mut gwo[c * nl..(c + 1) * nl], &wo[c * nl..(c + 1) * nl]);
+            for j in 0..nl {
+                gw[j] += go[c] * last[j];
+                dl[j] += go[c] * w[j];
+            }
+        }
+        relu_backward(dl, last);
         let mut dh = [0f32; MAX_HIDDEN];
         let dh = &mut dh[..nh];
-        for c in 0..3 {
-            gb2[c] += go[c];
-            let (gw, w) = (&mut gw2[c * nh..(c + 1) * nh], &w2[c * nh..(c + 1) * nh]);
-            for j in 0..nh {
-                gw[j] += go[c] * h[j];
-                dh[j] += go[c] * w[j];
+        if nh2 > 0 {
+            gbm.iter_mut().zip(dl.iter()).for_each(|(a, d)| *a += d);
+            for (i, (hi, row)) in h.iter().zip(gwm.chunks_exact_mut(nh2)).enumerate() {
+                if *hi > 0.0 {
+                    row.iter_mut()
+                        .zip(dl.iter())
+                        .for_each(|(a, d)| *a += hi * d);
+                    dh[i] = dot(&wm[i * nh2..(i + 1) * nh2], dl);
+                }
             }
+        } else {
+            dh.copy_from_slice(dl);
         }
-        for (d, hj) in dh.iter_mut().zip(h) {
-            if *hj <= 0.0 {
-                *d = 0.0;
-            }
-        }
+        relu_backward(dh, h);
         g_bias[..nh]
             .iter_mut()
             .zip(dh.iter())
@@ -166,6 +262,12 @@ impl ColourNet {
                 .zip(dh.iter())
                 .for_each(|(a, d)| *a += xi * d);
             g_x[i] = dot(&w1[i * nh..(i + 1) * nh], dh);
+        }
+        let refl_rows = gw1[(nf + self.dir_terms) * nh..].chunks_exact_mut(nh);
+        for (xi, row) in refl[..self.refl_terms].iter().zip(refl_rows) {
+            row.iter_mut()
+                .zip(dh.iter())
+                .for_each(|(a, d)| *a += xi * d);
         }
     }
 
@@ -185,14 +287,40 @@ impl ColourNet {
         }
     }
 
-    /// (W1 input-major: inputs x hidden, b1, W2: 3 x hidden, b2).
-    fn parts(&self) -> (&[f32], &[f32], &[f32], &[f32]) {
-        let (ni, nh) = (self.inputs(), self.hidden);
+    /// (W1 input-major: inputs x hidden, b1, Wm: hidden x hidden2, bm (both empty without a
+    /// second layer), Wout: 3 x the last layer's units, bout).
+    #[allow(clippy::type_complexity)]
+    fn parts(&self) -> (&[f32], &[f32], &[f32], &[f32], &[f32], &[f32]) {
+        let (ni, nh, nh2) = (self.inputs(), self.hidden, self.hidden2);
         let (w1, rest) = self.weights.split_at(ni * nh);
         let (b1, rest) = rest.split_at(nh);
-        let (w2, b2) = rest.split_at(3 * nh);
-        (w1, b1, w2, b2)
+        let (wm, rest) = rest.split_at(nh * nh2);
+        let (bm, rest) = rest.split_at(nh2);
+        let (wo, bo) = rest.split_at(3 * self.last_units());
+        (w1, b1, wm, bm, wo, bo)
     }
+}
+
+/// A ReLU's backward: no gradient through the units that were off.
+#[inline]
+fn relu_backward(d: &mut [f32], out: &[f32]) {
+    for (d, o) in d.iter_mut().zip(out) {
+        if *o <= 0.0 {
+            *d = 0.0;
+        }
+    }
+}
+
+/// The unit view direction `d` reflected about the surface whose density gradient is `grad`
+/// (either sign: a reflection does not depend on the normal's orientation); `d` itself where
+/// the density is flat.
+#[inline]
+pub fn reflect(d: glam::Vec3, grad: glam::Vec3) -> glam::Vec3 {
+    let len2 = grad.length_squared();
+    if len2 < 1e-12 {
+        return d;
+    }
+    d - grad * (2.0 * d.dot(grad) / len2)
 }
 
 /// A dot product in 8 independent lanes, so the compiler can vectorise the sum.
@@ -256,10 +384,16 @@ impl NetAdam {
 mod tests {
     use super::*;
 
-    /// The backward against central differences of the forward, for weights and features.
+    /// The backward against central differences of the forward, for weights and features,
+    /// with one hidden layer and with two.
     #[test]
     fn network_gradients_match_finite_differences() {
-        let mut net = ColourNet::new(5, 4, 12, 3);
+        for hidden2 in [0, 7] {
+            network_gradients_check(ColourNet::new(5, 4, 3, [12, hidden2], 3));
+        }
+    }
+
+    fn network_gradients_check(mut net: ColourNet) {
         let mut r = Rng::new(9);
         // Biases too, so some hidden units are active and some not.
         net.weights
@@ -268,11 +402,11 @@ mod tests {
         let x: Vec<f32> = (0..net.inputs()).map(|_| r.normal() as f32).collect();
         let g = [0.7f32, -1.1, 0.4];
         let loss = |n: &ColourNet, x: &[f32]| {
-            let mut h = [0f32; MAX_HIDDEN];
+            let mut h = [0f32; MAX_ACTIVATIONS];
             let c = n.forward(x, &mut h);
             (0..3).map(|i| g[i] as f64 * c[i] as f64).sum::<f64>()
         };
-        let mut h = [0f32; MAX_HIDDEN];
+        let mut h = [0f32; MAX_ACTIVATIONS];
         let rgb = net.forward(&x, &mut h);
         let mut g_w = vec![0f32; net.weights.len()];
         let mut g_x = vec![0f32; net.features];

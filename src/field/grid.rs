@@ -276,6 +276,32 @@ impl Grid {
         s
     }
 
+    /// The gradient of channel `c`'s trilinear interpolation at fraction `f` of the cell whose
+    /// corners are `k`, per voxel of this grid.
+    #[inline]
+    pub fn interp_gradient(&self, k: &Corners, c: usize, f: [f32; 3]) -> [f32; 3] {
+        let ch = self.channels;
+        let v = k.idx.map(|i| match i {
+            NONE => self.fill[c],
+            i => self.data[i as usize * ch + c],
+        });
+        let g = f.map(|x| 1.0 - x);
+        // Corner i is (i & 1, i >> 1 & 1, i >> 2): each axis's gradient is the bilinear
+        // interpolation, over the other two axes, of the differences along it.
+        let along = |a: usize, b: usize, stride: usize| {
+            let mut s = 0.0;
+            for i in (0..8).filter(|i| i & stride == 0) {
+                let (ib, ic) = ((i >> b) & 1, (i >> (3 - a - b)) & 1);
+                let wb = if ib == 1 { f[b] } else { g[b] };
+                let c3 = 3 - a - b;
+                let wc = if ic == 1 { f[c3] } else { g[c3] };
+                s += wb * wc * (v[i + stride] - v[i]);
+            }
+            s
+        };
+        [along(0, 1, 1), along(1, 0, 2), along(2, 0, 4)]
+    }
+
     /// Interpolate channels `from..from + out.len()` into `out`.
     #[inline]
     pub fn interp_range(&self, k: &Corners, from: usize, out: &mut [f32]) {
@@ -447,6 +473,33 @@ mod tests {
         // Slot indices and coordinates agree, across brick borders too.
         for (x, y, z) in [(0, 0, 0), (3, 4, 4), (5, 4, 8)] {
             assert_eq!(g.vertex_coords(g.vertex_slot(x, y, z)), [x, y, z]);
+        }
+    }
+
+    #[test]
+    fn interpolation_gradient_matches_finite_differences() {
+        let mut g = ramp(|_| true);
+        // A field that is not linear, so the bilinear weights of each axis's slope matter.
+        g.data
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| *v = (i as f32 * 0.37).sin());
+        for p in [[0.3f32, 1.7, 2.2], [3.6, 3.2, 3.9], [2.5, 0.5, 7.4]] {
+            let (b, f) = g.locate(p);
+            let grad = g.interp_gradient(&g.corners_of(b, f), 0, f);
+            for a in 0..3 {
+                let eps = 1e-2;
+                let (mut hi, mut lo) = (f, f);
+                hi[a] += eps;
+                lo[a] -= eps;
+                let at = |fr: [f32; 3]| g.interp_channel(&g.corners_of(b, fr), 0);
+                let num = (at(hi) - at(lo)) / (2.0 * eps);
+                assert!(
+                    (num - grad[a]).abs() < 1e-3,
+                    "{p:?} axis {a}: {num} vs {}",
+                    grad[a]
+                );
+            }
         }
     }
 

@@ -116,6 +116,7 @@ pub mod removed;
 pub mod render;
 pub mod scene_checks;
 pub mod session;
+pub mod sh;
 pub mod space;
 pub mod stereo;
 pub mod train;

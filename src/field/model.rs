@@ -8,9 +8,10 @@
 //! meaning when the grid is refined.
 
 use super::activation::sigmoid;
-use super::colour_net::{ColourNet, MAX_HIDDEN};
-use super::grid::{Grid, BRICK, BRICK_VERTICES, NONE};
+use super::colour_net::{reflect, ColourNet, MAX_HIDDEN};
+use super::grid::{Corners, Grid, BRICK, BRICK_VERTICES, NONE};
 use super::live::LiveBricks;
+use super::sh::{sh_basis, sh_coeffs, SH_TERMS};
 use super::space::Space;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -50,63 +51,6 @@ pub struct Field {
     /// Colour from features through a network ([`ColourNet`]) instead of SH coefficients: the
     /// channels are then [raw density, features].
     pub net: Option<ColourNet>,
-}
-
-pub fn sh_coeffs(degree: u32) -> usize {
-    ((degree + 1) * (degree + 1)) as usize
-}
-
-/// The most terms of a direction's SH basis: degree 3, which only a colour network's view input
-/// takes (SH colour on the grid stops at degree 2: its 27 colour channels fill
-/// [`MAX_CHANNELS`]).
-pub const SH_TERMS: usize = 16;
-
-/// Real spherical-harmonic basis (the constants of Plenoxels/PlenOctrees) for a unit direction.
-#[inline]
-pub fn sh_basis(degree: u32, d: Vec3, out: &mut [f32; SH_TERMS]) {
-    const C0: f32 = 0.282_094_8;
-    const C1: f32 = 0.488_602_5;
-    const C2: [f32; 5] = [
-        1.092_548_4,
-        -1.092_548_4,
-        0.315_391_57,
-        -1.092_548_4,
-        0.546_274_2,
-    ];
-    out[0] = C0;
-    if degree >= 1 {
-        out[1] = -C1 * d.y;
-        out[2] = C1 * d.z;
-        out[3] = -C1 * d.x;
-    }
-    if degree >= 2 {
-        let (x, y, z) = (d.x, d.y, d.z);
-        out[4] = C2[0] * x * y;
-        out[5] = C2[1] * y * z;
-        out[6] = C2[2] * (2.0 * z * z - x * x - y * y);
-        out[7] = C2[3] * x * z;
-        out[8] = C2[4] * (x * x - y * y);
-    }
-    if degree >= 3 {
-        const C3: [f32; 7] = [
-            -0.590_043_6,
-            2.890_611_4,
-            -0.457_045_8,
-            0.373_176_33,
-            -0.457_045_8,
-            1.445_305_7,
-            -0.590_043_6,
-        ];
-        let (x, y, z) = (d.x, d.y, d.z);
-        let (xx, yy, zz) = (x * x, y * y, z * z);
-        out[9] = C3[0] * y * (3.0 * xx - yy);
-        out[10] = C3[1] * x * y * z;
-        out[11] = C3[2] * y * (4.0 * zz - xx - yy);
-        out[12] = C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy);
-        out[13] = C3[4] * x * (4.0 * zz - xx - yy);
-        out[14] = C3[5] * z * (xx - yy);
-        out[15] = C3[6] * x * (xx - 3.0 * yy);
-    }
 }
 
 /// The most channels a vertex holds (density and colour): the size of the renderer's
@@ -149,14 +93,35 @@ impl Field {
     }
 
     /// The same box and dims with colour from `features` grid channels through a network of
-    /// `hidden` units (its direction input: the SH basis to the config's degree); every vertex
-    /// starts at density 0 and zero features.
-    pub fn with_colour_net(mut self, features: usize, hidden: usize, seed: u64) -> Field {
+    /// `hidden` units in its first hidden layer and in its second (0: none); its direction
+    /// input is the SH basis to the config's degree, and with `reflect` the basis of the
+    /// reflected view direction too ([`Field::reflection_basis`]). Every vertex starts at
+    /// density 0 and zero features.
+    pub fn with_colour_net(
+        mut self,
+        features: usize,
+        hidden: [usize; 2],
+        reflect: bool,
+        seed: u64,
+    ) -> Field {
         let ch = 1 + features;
         self.grid = Grid::new(self.grid.dims, ch, &vec![0.0; ch]);
         self.fill_occupancy(true);
-        self.net = Some(ColourNet::new(features, self.sh_k(), hidden, seed));
+        let (k, refl) = (self.sh_k(), if reflect { self.sh_k() } else { 0 });
+        self.net = Some(ColourNet::new(features, k, refl, hidden, seed));
         self
+    }
+
+    /// The SH basis of the unit direction `d` reflected about the density's normal at fraction
+    /// `fr` of the cell with corners `k`, for a colour network that takes it; zeros otherwise.
+    #[inline]
+    pub fn reflection_basis(&self, k: &Corners, fr: [f32; 3], d: Vec3) -> [f32; SH_TERMS] {
+        let mut basis = [0f32; SH_TERMS];
+        if self.net.as_ref().is_some_and(|n| n.refl_terms > 0) {
+            let g = Vec3::from(self.grid.interp_gradient(k, 0, fr));
+            sh_basis(self.config.sh_degree, reflect(d, g), &mut basis);
+        }
+        basis
     }
 
     /// What the samples of a ray seen along the SH basis `basis` share for their colour.
@@ -169,12 +134,13 @@ impl Field {
     }
 
     /// Colour of a sample from its interpolated colour channels `feat` (SH coefficients or
-    /// features) on a ray shaded by `s`; `h` is scratch for the network's hidden units.
+    /// features) and [`Field::reflection_basis`] `refl` on a ray shaded by `s`; `h` is scratch
+    /// for the network's hidden units.
     #[inline]
-    pub fn shade(&self, feat: &[f32], s: &RayShading, h: &mut [f32]) -> [f32; 3] {
+    pub fn shade(&self, feat: &[f32], refl: &[f32], s: &RayShading, h: &mut [f32]) -> [f32; 3] {
         let k = self.sh_k();
         match &self.net {
-            Some(net) => net.forward_features(&feat[..net.features], &s.bias, h),
+            Some(net) => net.forward_features(&feat[..net.features], refl, &s.bias, h),
             None => [0, 1, 2].map(|c| {
                 let coef = &feat[c * k..(c + 1) * k];
                 sigmoid(coef.iter().zip(&s.basis[..k]).map(|(a, b)| a * b).sum())

@@ -29,6 +29,11 @@ pub struct SetupConfig {
     /// 32.84 -> 32.75). Its worst test views miss the base plate's gloss seen from above
     /// (examples/results/field.md, "The network's view input").
     pub net_sh_degree: u32,
+    /// A colour network also takes the view direction reflected about the density's normal, to
+    /// the same SH degree ([`super::colour_net::reflect`]).
+    pub net_reflect: bool,
+    /// Units of a colour network's second hidden layer (0: one layer).
+    pub net_hidden2: usize,
     /// An object field trained on fewer views than this takes SH colour whatever
     /// `net_features` says: the network's view dependence needs many views to hold between
     /// them. Lego (100 views) gains 0.5-0.6 dB held out at 400^2 and 800^2 from it; the demo
@@ -81,7 +86,10 @@ impl SetupConfig {
                 self.sh_degree, self.net_sh_degree
             )));
         }
-        let dir_terms = super::model::sh_coeffs(self.net_sh_degree);
+        let mut dir_terms = super::sh::sh_coeffs(self.net_sh_degree);
+        if self.net_reflect {
+            dir_terms *= 2;
+        }
         let most = (MAX_INPUTS - dir_terms).min(MAX_CHANNELS - 1);
         if self.net_features > most || (self.net_features > 0 && self.net_hidden == 0) {
             return Err(crate::error::Error::invalid(format!(
@@ -89,10 +97,10 @@ impl SetupConfig {
                 self.net_sh_degree, self.net_features, self.net_hidden
             )));
         }
-        if self.net_hidden > MAX_HIDDEN {
+        if self.net_hidden.max(self.net_hidden2) > MAX_HIDDEN {
             return Err(crate::error::Error::invalid(format!(
-                "a colour network takes at most {MAX_HIDDEN} hidden units (asked for {})",
-                self.net_hidden
+                "a colour network takes at most {MAX_HIDDEN} hidden units a layer (asked for {} and {})",
+                self.net_hidden, self.net_hidden2
             )));
         }
         Ok(())
@@ -152,8 +160,18 @@ impl SetupConfig {
         match self.net_features {
             0 => format!("SH degree {}", self.sh_degree),
             f => format!(
-                "network: {f} features, {} hidden units, view direction to SH degree {}",
-                self.net_hidden, self.net_sh_degree
+                "network: {f} features, {} hidden units{}, view direction{} to SH degree {}",
+                self.net_hidden,
+                match self.net_hidden2 {
+                    0 => String::new(),
+                    h => format!(" then {h}"),
+                },
+                if self.net_reflect {
+                    " and its reflection"
+                } else {
+                    ""
+                },
+                self.net_sh_degree
             ),
         }
     }
@@ -161,7 +179,7 @@ impl SetupConfig {
     /// Grid channels per vertex: density and the colour's.
     pub fn channels(&self) -> usize {
         match self.net_features {
-            0 => 1 + 3 * super::model::sh_coeffs(self.sh_degree),
+            0 => 1 + 3 * super::sh::sh_coeffs(self.sh_degree),
             f => 1 + f,
         }
     }
@@ -174,6 +192,8 @@ impl Default for SetupConfig {
             net_features: 8,
             net_hidden: 32,
             net_sh_degree: 3,
+            net_reflect: false,
+            net_hidden2: 0,
             net_min_views: 80,
             fine_min_views: 80,
             voxels_per_pixel: 1.0,
@@ -458,7 +478,12 @@ impl GridPlan {
         );
         if net {
             f.config.sh_degree = setup.sh_degree;
-            f = f.with_colour_net(setup.net_features, setup.net_hidden, cfg.seed);
+            f = f.with_colour_net(
+                setup.net_features,
+                [setup.net_hidden, setup.net_hidden2],
+                setup.net_reflect,
+                cfg.seed,
+            );
         }
         f.space = space;
         f

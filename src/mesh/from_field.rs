@@ -12,8 +12,9 @@ use super::frame::GltfFrame;
 use super::io::MeshFormat;
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
-use crate::field::colour_net::MAX_HIDDEN;
-use crate::field::model::{sh_basis, Field, MAX_CHANNELS, SH_TERMS};
+use crate::field::colour_net::MAX_ACTIVATIONS;
+use crate::field::model::{Field, MAX_CHANNELS};
+use crate::field::sh::{sh_basis, SH_TERMS};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -86,8 +87,8 @@ fn raw_at(field: &Field, p: Vec3) -> f32 {
     field.grid.interp_channel(&k, 0)
 }
 
-/// Colour at a world point seen along `basis` (an SH basis of a direction), linear 0..1.
-fn color_at(field: &Field, p: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
+/// Colour at a world point seen along `dir` whose SH basis is `basis`, linear 0..1.
+fn color_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
     let g = field.to_grid(p);
     let dims = field.grid.dims;
     let g = Vec3::new(
@@ -100,8 +101,9 @@ fn color_at(field: &Field, p: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
     let mut feat = [0f32; MAX_CHANNELS];
     let ch = field.grid.channels;
     field.grid.interp_range(&k, 1, &mut feat[..ch - 1]);
-    let mut h = [0f32; MAX_HIDDEN];
-    field.shade(&feat, &field.shading(*basis), &mut h)
+    let mut h = [0f32; MAX_ACTIVATIONS];
+    let refl = field.reflection_basis(&k, fr, dir);
+    field.shade(&feat, &refl, &field.shading(*basis), &mut h)
 }
 
 /// The basis a vertex's colour is read with: SH colour keeps its view-independent (DC) term
@@ -135,7 +137,7 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
         let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
         let w = trans * alpha;
         if w > 0.0 {
-            let c = color_at(field, q, &basis);
+            let c = color_at(field, q, -n, &basis);
             for k in 0..3 {
                 acc[k] += w * c[k];
             }
@@ -147,7 +149,7 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
         }
     }
     if wsum <= 1e-6 {
-        return color_at(field, p, &basis);
+        return color_at(field, p, -n, &basis);
     }
     acc.map(|a| (a / wsum).clamp(0.0, 1.0))
 }

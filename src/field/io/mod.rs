@@ -24,7 +24,8 @@
 
 use super::colour_net::{ColourNet, MAX_HIDDEN, MAX_INPUTS};
 use super::grid::{Grid, BRICK_VERTICES};
-use super::model::{sh_coeffs, Field, FieldConfig};
+use super::model::{Field, FieldConfig};
+use super::sh::sh_coeffs;
 use super::space::Space;
 use super::train::{TrainConfig, Trainer};
 use crate::error::{Error, Result};
@@ -75,8 +76,8 @@ pub struct Header {
     pub arrays: Vec<ArrayInfo>,
 }
 
-fn is_zero(v: &u32) -> bool {
-    *v == 0
+fn is_zero<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
 }
 
 /// A colour network's shape ([`ColourNet`]).
@@ -84,7 +85,13 @@ fn is_zero(v: &u32) -> bool {
 pub struct NetShape {
     pub features: usize,
     pub dir_terms: usize,
+    /// Terms of the reflected direction's basis; 0 (and absent, in files before it): none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub refl_terms: usize,
     pub hidden: usize,
+    /// Units of the second hidden layer; 0 (and absent, in files before it): none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub hidden2: usize,
 }
 
 /// Everything a model file holds.
@@ -249,7 +256,9 @@ pub fn save(path: &Path, m: &ModelParts) -> Result<()> {
         colour_net: f.net.as_ref().map(|n| NetShape {
             features: n.features,
             dir_terms: n.dir_terms,
+            refl_terms: n.refl_terms,
             hidden: n.hidden,
+            hidden2: n.hidden2,
         }),
         final_dims: m.final_dims,
         world_transform: m.world_transform,
@@ -401,7 +410,8 @@ fn bricked_field(
             .f32s
             .remove("colour_net")
             .ok_or("no 'colour_net' array for the header's colour network")?;
-        let want = ColourNet::weight_count(n.features + n.dir_terms, n.hidden);
+        let inputs = n.features + n.dir_terms + n.refl_terms;
+        let want = ColourNet::weight_count(inputs, n.hidden, n.hidden2);
         if weights.len() != want {
             return Err(format!(
                 "array 'colour_net' holds {} values, the network {n:?} needs {want}",
@@ -411,7 +421,9 @@ fn bricked_field(
         field.net = Some(ColourNet {
             features: n.features,
             dir_terms: n.dir_terms,
+            refl_terms: n.refl_terms,
             hidden: n.hidden,
+            hidden2: n.hidden2,
             weights,
         });
     }
@@ -531,9 +543,11 @@ fn read_header(path: &Path, r: &mut impl std::io::Read, total: u64) -> Result<(H
     }
     if let Some(n) = h.colour_net {
         if n.dir_terms != sh_coeffs(h.config.sh_degree)
-            || n.features + n.dir_terms > MAX_INPUTS
+            || (n.refl_terms != 0 && n.refl_terms != n.dir_terms)
+            || n.features + n.dir_terms + n.refl_terms > MAX_INPUTS
             || n.hidden == 0
             || n.hidden > MAX_HIDDEN
+            || n.hidden2 > MAX_HIDDEN
         {
             return Err(bad(format!(
                 "inconsistent header: colour network {n:?} for SH degree {}",

@@ -15,10 +15,11 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::activation::{sigmoid, softplus};
-use super::colour_net::MAX_HIDDEN;
+use super::colour_net::{MAX_ACTIVATIONS, MAX_HIDDEN};
 use super::grid::BRICK;
 use super::live::BLOCK;
-use super::model::{sh_basis, Field, RayShading, MAX_CHANNELS, SH_TERMS};
+use super::model::{Field, RayShading, MAX_CHANNELS};
+use super::sh::{sh_basis, SH_TERMS};
 use super::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
@@ -122,6 +123,8 @@ struct Marcher<'a> {
     f: &'a Field,
     opt: &'a RenderOptions,
     shading: RayShading,
+    /// The ray's unit direction (for a reflected direction).
+    d: Vec3,
     /// Sample spacing in finest voxels (alpha = 1 - exp(-density * delta)).
     delta: f32,
     shift: f32,
@@ -129,7 +132,7 @@ struct Marcher<'a> {
     out: RayOut,
     feat: [f32; MAX_CHANNELS],
     /// Scratch for a network's hidden units.
-    h: [f32; MAX_HIDDEN],
+    h: [f32; MAX_ACTIVATIONS],
     /// [`NET_MIN_WEIGHT`] at this step.
     min_weight: f32,
     samples: &'a mut Vec<Sample>,
@@ -143,12 +146,13 @@ impl<'a> Marcher<'a> {
             f,
             opt,
             shading: f.shading(basis),
+            d,
             delta: opt.step * f.voxel / f.config.base_voxel,
             shift: f.shift(),
             trans: 1.0,
             out: RayOut::default(),
             feat: [0f32; MAX_CHANNELS],
-            h: [0f32; MAX_HIDDEN],
+            h: [0f32; MAX_ACTIVATIONS],
             min_weight: NET_MIN_WEIGHT * opt.step,
             samples,
         }
@@ -226,7 +230,8 @@ impl<'a> Marcher<'a> {
         if shaded {
             let ch = f.grid.channels;
             f.grid.interp_range(&kc, 1, &mut self.feat[..ch - 1]);
-            rgb = f.shade(&self.feat, &self.shading, &mut self.h);
+            let refl = f.reflection_basis(&kc, fr, self.d);
+            rgb = f.shade(&self.feat, &refl, &self.shading, &mut self.h);
         }
         for c in 0..3 {
             self.out.rgb[c] += w * rgb[c];
@@ -297,7 +302,7 @@ pub fn backward(
     let mut r_a = 0.0f32;
     let mut r_d = 0.0f32;
     let mut grad = [0f32; MAX_CHANNELS];
-    let (mut feat, mut h) = ([0f32; MAX_CHANNELS], [0f32; MAX_HIDDEN]);
+    let (mut feat, mut h) = ([0f32; MAX_CHANNELS], [0f32; MAX_ACTIVATIONS]);
     // dL/d(the ray's shared pre-activation), summed over its samples.
     let mut g_bias = [0f32; MAX_HIDDEN];
     for (i, s) in samples.iter().enumerate().rev() {
@@ -319,11 +324,13 @@ pub fn backward(
                     .grid
                     .corners_of(f.grid.cell_of_base(s.base as usize), s.frac);
                 f.grid.interp_range(&kc, 1, &mut feat[..ch - 1]);
-                f.shade(&feat, &shading, &mut h);
+                let refl = f.reflection_basis(&kc, s.frac, d);
+                f.shade(&feat, &refl, &shading, &mut h);
                 let gc = g_rgb.map(|c| c * w);
                 let nf = net.features;
                 net.backward_features(
                     &feat[..nf],
+                    &refl,
                     &h,
                     s.rgb,
                     gc,
