@@ -68,10 +68,6 @@ pub struct TrainCmd {
     /// Spherical-harmonic degree of the view direction the colour network takes (0-3).
     #[arg(long, default_value_t = SetupConfig::default().net_sh_degree)]
     colour_net_sh_degree: u32,
-    /// The colour network also takes the view direction reflected about the density's normal
-    /// (Ref-NeRF's), to the same SH degree ('false': the view direction alone).
-    #[arg(long, default_value_t = SetupConfig::default().net_reflect, action = clap::ArgAction::Set)]
-    colour_net_reflect: bool,
     /// A run that affords this many passes over its training pixels (its steps, or its
     /// --time-budget at the rate of a 2-core machine) trains the large model: a colour network
     /// of 12 features and 64 hidden units on a grid 1.3x finer ('inf': never).
@@ -113,7 +109,6 @@ impl TrainCmd {
                 net_features: self.colour_net,
                 net_min_views: self.colour_net_min_views,
                 net_sh_degree: self.colour_net_sh_degree,
-                net_reflect: self.colour_net_reflect,
                 large_model_passes: self.large_model_passes,
                 memory_budget: self.memory_mb << 20,
                 ..Default::default()
