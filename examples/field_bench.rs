@@ -22,7 +22,8 @@
 //! less opaque than this a step are pruned), FIELD_DIST (distortion loss weight, distances in
 //! finest voxels); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_BATCH, FIELD_BETAS
 //! ("beta1,beta2": Adam's), FIELD_NET_REFLECT (1: the network also takes the reflected view
-//! direction), FIELD_NET_HIDDEN2 (units of a second hidden layer), FIELD_SPARSE, FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
+//! direction), FIELD_NET_HIDDEN2 (units of a second hidden layer), FIELD_SPARSE,
+//! FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;

@@ -153,13 +153,16 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
         resumed.train_step(&views, &rays);
     }
     assert!(resumed.field == whole.field, "resumed run diverged");
-    // With the reflected view direction as an input too: trained, saved and loaded whole.
+    // With the reflected view direction as an input too and a second hidden layer: trained,
+    // saved and loaded whole.
     let reflect = SetupConfig {
         net_reflect: true,
+        net_hidden2: 4,
         ..net_setup()
     };
     let r = train_with(&views, &reflect, small_cfg(5), 5);
-    assert_eq!(r.field.net.as_ref().map(|n| n.refl_terms), Some(16));
+    let shape = r.field.net.as_ref().map(|n| (n.refl_terms, n.hidden2));
+    assert_eq!(shape, Some((16, 4)));
     io::save(&path, &r.parts(io::IDENTITY, serde_json::Value::Null)).unwrap();
     assert!(
         io::load(&path).unwrap().field == r.field,
