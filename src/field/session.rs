@@ -31,11 +31,11 @@ pub struct SetupConfig {
     pub net_sh_degree: u32,
     /// A colour network also takes the view direction reflected about the density's normal, to
     /// the same SH degree ([`super::colour_net::reflect`]). Off: lego 800^2 in 20 min scored
-    /// 34.39 dB with it, between two default runs' 34.35 and 34.58, in 11% fewer steps
+    /// 34.39 dB with it, within three default runs' 34.35-34.58, in 11% fewer steps
     /// (examples/results/field.md, "Two inputs for the view-dependent colour").
     pub net_reflect: bool,
     /// Units of a colour network's second hidden layer (0: one layer). None by default: 32
-    /// units scored lego 800^2 in 20 min at 34.53 dB, also between the two (the same section).
+    /// units scored lego 800^2 in 20 min at 34.53 dB, also within them (the same section).
     pub net_hidden2: usize,
     /// An object field trained on fewer views than this takes SH colour whatever
     /// `net_features` says: the network's view dependence needs many views to hold between
