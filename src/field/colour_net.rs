@@ -80,17 +80,13 @@ impl ColourNet {
     }
 
     pub fn weight_count(inputs: usize, hidden: usize, hidden2: usize) -> usize {
-        let last = if hidden2 > 0 { hidden2 } else { hidden };
+        let last = last_layer_units(hidden, hidden2);
         inputs * hidden + hidden + hidden * hidden2 + hidden2 + 3 * last + 3
     }
 
     /// Units of the layer the output reads.
     fn last_units(&self) -> usize {
-        if self.hidden2 > 0 {
-            self.hidden2
-        } else {
-            self.hidden
-        }
+        last_layer_units(self.hidden, self.hidden2)
     }
 
     /// Where b1, Wm and Wout start in `weights`.
@@ -298,6 +294,15 @@ impl ColourNet {
         let (bm, rest) = rest.split_at(nh2);
         let (wo, bo) = rest.split_at(3 * self.last_units());
         (w1, b1, wm, bm, wo, bo)
+    }
+}
+
+/// Units of the layer the output reads: the second hidden layer's, or the first's without one.
+fn last_layer_units(hidden: usize, hidden2: usize) -> usize {
+    if hidden2 > 0 {
+        hidden2
+    } else {
+        hidden
     }
 }
 

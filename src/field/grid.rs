@@ -288,18 +288,22 @@ impl Grid {
         let g = f.map(|x| 1.0 - x);
         // Corner i is (i & 1, i >> 1 & 1, i >> 2): each axis's gradient is the bilinear
         // interpolation, over the other two axes, of the differences along it.
-        let along = |a: usize, b: usize, stride: usize| {
-            let mut s = 0.0;
-            for i in (0..8).filter(|i| i & stride == 0) {
-                let (ib, ic) = ((i >> b) & 1, (i >> (3 - a - b)) & 1);
-                let wb = if ib == 1 { f[b] } else { g[b] };
-                let c3 = 3 - a - b;
-                let wc = if ic == 1 { f[c3] } else { g[c3] };
-                s += wb * wc * (v[i + stride] - v[i]);
+        let weight = |i: usize, axis: usize| {
+            if (i >> axis) & 1 == 1 {
+                f[axis]
+            } else {
+                g[axis]
             }
-            s
         };
-        [along(0, 1, 1), along(1, 0, 2), along(2, 0, 4)]
+        let along = |a: usize| {
+            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+            let stride = 1 << a;
+            (0..8)
+                .filter(|i| i & stride == 0)
+                .map(|i| weight(i, b) * weight(i, c) * (v[i + stride] - v[i]))
+                .sum()
+        };
+        [along(0), along(1), along(2)]
     }
 
     /// Interpolate channels `from..from + out.len()` into `out`.

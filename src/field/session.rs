@@ -89,11 +89,10 @@ impl SetupConfig {
                 self.sh_degree, self.net_sh_degree
             )));
         }
-        let mut dir_terms = super::sh::sh_coeffs(self.net_sh_degree);
-        if self.net_reflect {
-            dir_terms *= 2;
-        }
-        let most = (MAX_INPUTS - dir_terms).min(MAX_CHANNELS - 1);
+        // The view direction's basis, and the reflected direction's as well when asked for.
+        let bases = if self.net_reflect { 2 } else { 1 };
+        let direction_inputs = bases * super::sh::sh_coeffs(self.net_sh_degree);
+        let most = (MAX_INPUTS - direction_inputs).min(MAX_CHANNELS - 1);
         if self.net_features > most || (self.net_features > 0 && self.net_hidden == 0) {
             return Err(crate::error::Error::invalid(format!(
                 "a colour network takes 1 to {most} features and 1 to {MAX_HIDDEN} hidden units at SH degree {} (asked for {} and {})",
