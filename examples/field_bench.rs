@@ -43,7 +43,8 @@ fn pair(name: &str) -> Option<(f32, f32)> {
 }
 
 /// The overrides both benchmarks take: FIELD_BATCH, FIELD_LR, FIELD_LR_FINAL, FIELD_SEED,
-/// FIELD_RUN, FIELD_BETAS, FIELD_SPARSE, FIELD_PRUNE_ALPHA, FIELD_DIST.
+/// FIELD_RUN, FIELD_BETAS, FIELD_SPARSE, FIELD_PRUNE_ALPHA, FIELD_DIST, FIELD_AVERAGE
+/// ("from,every": Polyak averaging from that fraction of the run).
 fn optimiser_overrides(cfg: &mut TrainConfig) {
     if let Some(v) = env("FIELD_BATCH") {
         cfg.batch = v;
@@ -71,6 +72,9 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
     }
     if let Some(v) = env("FIELD_DIST") {
         cfg.distortion_weight = v;
+    }
+    if let Some((from, every)) = pair("FIELD_AVERAGE") {
+        (cfg.average_from, cfg.average_every) = (from, every as usize);
     }
 }
 
@@ -242,6 +246,17 @@ fn main() -> objnerf::Result<()> {
         }
     });
     let train_cpu = cpu_seconds() - cpu0;
+    let memory_mb = trainer.memory_bytes() as f64 / 1048576.0;
+    // The last parameters scored beside their mean, when the run kept one: the same run, so
+    // the difference is the averaging's alone.
+    let last = trainer.has_average().then(|| {
+        field::eval::evaluate(
+            &trainer.field,
+            &field::RenderOptions::default(),
+            &test_views,
+        )
+    });
+    let averaged = trainer.take_average();
     // Evaluate with the default (finer) sampling whatever the training step was.
     let ev = field::eval::evaluate(
         &trainer.field,
@@ -262,9 +277,13 @@ fn main() -> objnerf::Result<()> {
         "dims": trainer.field.grid.dims,
         "occupied_cells": trainer.field.occupied_cells(), "finest": trainer.finest,
         "phase_secs": trainer.phase_secs,
-        "memory_mb": trainer.memory_bytes() as f64 / 1048576.0, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
+        "memory_mb": memory_mb, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
         "test_views": ev.views,
+        "averaged_snapshots": averaged,
+        "last_params": last.map(|l| serde_json::json!({
+            "test_psnr": l.psnr, "test_ssim": l.ssim, "test_views": l.views,
+        })),
     });
     println!("{out}");
     if let Some(i) = args.iter().position(|a| a == "--json") {

@@ -93,6 +93,14 @@ pub struct TrainConfig {
     /// Cells whose densest corner is less opaque than this over one step are pruned (at least
     /// the render's `alpha_thresh`, below which samples are skipped anyway).
     pub prune_alpha: f32,
+    /// Polyak averaging ([`Trainer::take_average`]): from this fraction of the schedule on,
+    /// every `average_every` steps the grid's values and the network's weights are folded into
+    /// a running mean, which the run ends with (1 or more: off). The mean takes a copy of the
+    /// grid's values (4 bytes a value more while it runs).
+    ///
+    /// [`Trainer::take_average`]: super::Trainer::take_average
+    pub average_from: f32,
+    pub average_every: usize,
     pub render: RenderOptions,
 }
 
@@ -142,6 +150,8 @@ impl Default for TrainConfig {
             // within 0.02 dB at 3000 steps, in 0.6-0.7x the time (examples/results/field.md,
             // "Pruning the faint shell"). Scene fields used it already.
             prune_alpha: 0.01,
+            average_from: 1.0,
+            average_every: 500,
             // Training samples every voxel; rendering and evaluation every half voxel. Measured
             // on lego 200^2 in 90 s: step 1.0 with 2048-ray batches gave 31.2 dB against 28.3 dB
             // at step 0.5 (same batch), since each step costs about half as much.

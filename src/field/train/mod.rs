@@ -7,6 +7,7 @@
 //! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
 //! the same order whatever the thread count, and two runs with one seed give identical grids.
 
+mod average;
 mod config;
 mod optim;
 mod step;
@@ -21,6 +22,7 @@ use super::render::forward;
 use super::view::View;
 use crate::util::bf16::to_bf16;
 use crate::util::Rng;
+use average::ParamAverage;
 use config::AUTO_RAY_RUN_BYTES;
 use optim::{split_by, AdamStep, SlabScatter, Slabs};
 use rayon::prelude::*;
@@ -69,6 +71,8 @@ pub struct Trainer {
     pub budget: Option<usize>,
     /// How the finest stage's resolution was chosen, once it started.
     pub finest: Option<FinestStage>,
+    /// The running mean of the parameters, once `cfg.average_from` has passed.
+    average: Option<ParamAverage>,
 }
 
 /// The finest stage's grid: chosen when it starts, from the bricks the occupied cells need.
@@ -134,6 +138,7 @@ impl Trainer {
             phase_secs: [0.0; 4],
             budget: None,
             finest: None,
+            average: None,
         };
         t.reset_state();
         t
@@ -146,6 +151,7 @@ impl Trainer {
         self.v = vec![0; n];
         self.stamp = vec![0; self.field.grid.num_vertices()];
         self.adam_t = 0;
+        self.average = None;
     }
 
     /// Follow the grid when it dropped bricks: the optimiser state of the kept slots moves with
@@ -156,6 +162,9 @@ impl Trainer {
         compact_buffer(&mut self.v, map, per);
         self.grad.truncate(self.m.len());
         compact_buffer(&mut self.stamp, map, BRICK_VERTICES);
+        if let Some(a) = &mut self.average {
+            compact_buffer(&mut a.data, map, per);
+        }
     }
 
     /// Occupy `cells` ([`Field::occupy`]); the optimiser starts afresh when bricks were added
@@ -202,6 +211,7 @@ impl Trainer {
             + self.grad.len() * 4
             + (self.m.len() + self.v.len()) * 2
             + self.stamp.len() * 4
+            + self.average.as_ref().map_or(0, |a| a.data.len() * 4)
     }
 
     /// The grid scale the schedule wants at `step`.
@@ -403,6 +413,7 @@ impl Trainer {
             self.prune();
             self.phase_secs[3] += c.elapsed().as_secs_f64();
         }
+        self.maybe_fold_average();
         let n = picks.len() as f64;
         StepStats {
             step: self.step,
@@ -547,6 +558,43 @@ impl Trainer {
             .for_each(|(si, ((((p, g), m), v), list))| {
                 step.apply(p, g, m, v, list, bounds[si], ch);
             });
+    }
+
+    /// Fold the parameters into the running mean when the schedule says so.
+    fn maybe_fold_average(&mut self) {
+        let cfg = &self.cfg;
+        if cfg.average_from >= 1.0
+            || self.progress() < cfg.average_from
+            || self.step % cfg.average_every.max(1) != 0
+        {
+            return;
+        }
+        let c = std::time::Instant::now();
+        let data = &self.field.grid.data;
+        let net = self.field.net.as_ref().map_or(&[][..], |n| &n.weights[..]);
+        match &mut self.average {
+            Some(a) => a.fold(data, net),
+            None => self.average = Some(ParamAverage::start(data, net)),
+        }
+        self.phase_secs[3] += c.elapsed().as_secs_f64();
+    }
+
+    /// Whether a running mean is kept (the run has passed `cfg.average_from`).
+    pub fn has_average(&self) -> bool {
+        self.average.is_some()
+    }
+
+    /// End the run on the mean of its last parameters ([`TrainConfig::average_from`]) if one
+    /// was kept; returns how many snapshots it averaged (0: none, the field is as trained).
+    pub fn take_average(&mut self) -> u32 {
+        let Some(a) = self.average.take() else {
+            return 0;
+        };
+        self.field.grid.data = a.data;
+        if let Some(net) = self.field.net.as_mut() {
+            net.weights = a.net;
+        }
+        a.count
     }
 
     /// Sum the chunks' network gradients in chunk order and step the network.
