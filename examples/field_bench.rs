@@ -74,7 +74,8 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
         cfg.distortion_weight = v;
     }
     if let Some((from, every)) = pair("FIELD_AVERAGE") {
-        (cfg.average_from, cfg.average_every) = (from, every as usize);
+        (cfg.average_from, cfg.average_from_network) = (from, from);
+        cfg.average_every = every as usize;
     }
 }
 
@@ -232,6 +233,8 @@ fn main() -> objnerf::Result<()> {
         time_budget: Some(secs),
         plateau_db: None,
         window: 100,
+        // The last parameters are scored beside their mean, below.
+        keep_last: true,
         ..Default::default()
     };
     let mut next_log = 0.0;

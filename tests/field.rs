@@ -194,11 +194,15 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
     // ... and so does the learning rates' decay: a network field's is shallower.
     let cfg = small_cfg(1);
     assert_eq!(t.cfg.lr_final, cfg.lr_final);
+    assert_eq!(t.cfg.average_from, cfg.average_from);
     let (t, _, report) =
         field::prepare(&views, &[], &at_least(views.len()), cfg.clone()).expect("a network");
     assert!(t.field.net.is_some());
     assert_eq!(t.cfg.lr_final, cfg.lr_final_network);
     assert_ne!(cfg.lr_final, cfg.lr_final_network);
+    // ... and it ends on the mean of its last parameters, which an SH field does not.
+    assert_eq!(t.cfg.average_from, cfg.average_from_network);
+    assert!(cfg.average_from >= 1.0 && cfg.average_from_network < 1.0);
     assert!(report.why.contains("decay to"), "{}", report.why);
 }
 
@@ -626,4 +630,81 @@ fn a_newer_model_version_is_a_clear_error() {
         err.contains("newer.objf"),
         "the error names the file: {err}"
     );
+}
+
+/// A network field ends its run on the mean of its last parameters: `run` hands back the mean
+/// of the snapshots taken every `average_every` steps from `average_from_network` of the
+/// schedule on (the same trajectory stepped by hand and averaged here); a run stopped as a
+/// phase keeps its last parameters.
+#[test]
+fn a_network_field_ends_on_the_mean_of_its_last_parameters() {
+    let Some(views) = lego_views("train", 16, 4) else {
+        return;
+    };
+    let cfg = TrainConfig {
+        // No pruning: the grid keeps its bricks, so every snapshot has the same layout.
+        prune_every: 0,
+        average_from_network: 0.6,
+        average_every: 2,
+        ..small_cfg(20)
+    };
+    let (mut by_hand, rays, report) =
+        field::prepare(&views, &[], &net_setup(), cfg.clone()).unwrap();
+    assert!(
+        report.why.contains("mean of its parameters"),
+        "{}",
+        report.why
+    );
+    let mut snaps: Vec<(Vec<f32>, Vec<f32>)> = Vec::new();
+    for _ in 0..20 {
+        by_hand.train_step(&views, &rays);
+        let t = &by_hand;
+        if t.step >= 12 && t.step % 2 == 0 {
+            let net = t.field.net.as_ref().unwrap().weights.clone();
+            snaps.push((t.field.grid.data.clone(), net));
+        }
+    }
+    let last = by_hand.field.clone();
+    let (mut t, rays, _) = field::prepare(&views, &[], &net_setup(), cfg.clone()).unwrap();
+    let summary = field::run(&mut t, &views, &rays, &field::StopRule::default(), |_| {});
+    assert_eq!((summary.steps, summary.averaged), (20, snaps.len() as u32));
+    let mean = |of: &dyn Fn(&(Vec<f32>, Vec<f32>)) -> f32| {
+        snaps.iter().map(of).sum::<f32>() / snaps.len() as f32
+    };
+    let data = &t.field.grid.data;
+    assert_eq!(data.len(), last.grid.data.len());
+    let moved = data
+        .iter()
+        .zip(&last.grid.data)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        moved > 1000,
+        "only {moved} values differ from the last parameters"
+    );
+    for (j, v) in data.iter().enumerate() {
+        let m = mean(&|s| s.0[j]);
+        assert!(
+            (v - m).abs() <= 1e-5 * (1.0 + m.abs()),
+            "value {j}: {v} against the mean {m}"
+        );
+    }
+    for (j, w) in t.field.net.as_ref().unwrap().weights.iter().enumerate() {
+        let m = mean(&|s| s.1[j]);
+        assert!(
+            (w - m).abs() <= 1e-5 * (1.0 + m.abs()),
+            "weight {j}: {w} against {m}"
+        );
+    }
+    // Stopped as a phase (before the schedule's end), the run keeps its last parameters.
+    let (mut p, rays, _) = field::prepare(&views, &[], &net_setup(), cfg).unwrap();
+    let phase = field::StopRule {
+        until_step: Some(16),
+        ..Default::default()
+    };
+    assert_eq!(
+        field::run(&mut p, &views, &rays, &phase, |_| {}).averaged,
+        0
+    );
+    assert!(p.has_average());
 }

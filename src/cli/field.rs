@@ -193,8 +193,12 @@ impl TrainCmd {
                 f.why
             );
         }
+        let mean = match r.run.averaged {
+            0 => String::new(),
+            n => format!(", ending on the mean of {n} snapshots of its last parameters"),
+        };
         eprintln!(
-            "trained {} steps in {:.1} s ({:.0} rays/s, stopped by {}); batch PSNR {:.2} dB; {} occupied cells; {:.0} MiB; model {}",
+            "trained {} steps in {:.1} s ({:.0} rays/s, stopped by {}{mean}); batch PSNR {:.2} dB; {} occupied cells; {:.0} MiB; model {}",
             r.run.steps,
             r.run.seconds,
             r.run.rays_per_second,

@@ -254,10 +254,17 @@ pub fn prepare(
     let mut why = format!("{box_why}; {why}; colour: {colour}");
     if setup.net_features > 0 {
         cfg.lr_final = cfg.lr_final_network;
+        cfg.average_from = cfg.average_from_network;
         why += &format!(
             "; learning rates decay to {} of their start (a network field)",
             cfg.lr_final
         );
+        if cfg.average_from < 1.0 {
+            why += &format!(
+                ", and it ends on the mean of its parameters from {:.0}% of the run on",
+                cfg.average_from * 100.0
+            );
+        }
     }
     let few_views = (views.len() < setup.fine_min_views).then(|| {
         format!(
@@ -525,6 +532,10 @@ pub struct StopRule {
     pub until_seconds: Option<f64>,
     /// Seconds of the budget spent by earlier phases.
     pub seconds_before: f64,
+    /// End on the last parameters even where the run kept their mean
+    /// ([`TrainConfig::average_from`](super::train::TrainConfig::average_from)); a benchmark
+    /// that scores both takes the mean itself ([`Trainer::take_average`]).
+    pub keep_last: bool,
 }
 
 impl StopRule {
@@ -546,6 +557,7 @@ impl Default for StopRule {
             until_step: None,
             until_seconds: None,
             seconds_before: 0.0,
+            keep_last: false,
         }
     }
 }
@@ -557,6 +569,8 @@ pub struct RunSummary {
     pub rays_per_second: f64,
     pub final_psnr: f32,
     pub stopped_by: String,
+    /// Snapshots of the parameters whose mean the run ended on (0: it ended on the last ones).
+    pub averaged: u32,
 }
 
 /// Train until `trainer.cfg.steps`, the time budget or a plateau; `progress` sees every step
@@ -610,6 +624,15 @@ pub fn run(
         }
     }
     let seconds = start.elapsed().as_secs_f64();
+    // A phase of a longer schedule goes on from its last parameters; the end of the schedule
+    // takes their mean where one was kept.
+    let phase_end =
+        stopped_by == "phase time" || trainer.step < trainer.cfg.steps && stopped_by == "steps";
+    let averaged = if phase_end || stop.keep_last {
+        0
+    } else {
+        trainer.take_average()
+    };
     RunSummary {
         steps: trainer.step,
         seconds,
@@ -617,6 +640,7 @@ pub fn run(
             / seconds.max(1e-9),
         final_psnr: last.psnr,
         stopped_by,
+        averaged,
     }
 }
 

@@ -95,11 +95,16 @@ pub struct TrainConfig {
     pub prune_alpha: f32,
     /// Polyak averaging ([`Trainer::take_average`]): from this fraction of the schedule on,
     /// every `average_every` steps the grid's values and the network's weights are folded into
-    /// a running mean, which the run ends with (1 or more: off). The mean takes a copy of the
-    /// grid's values (4 bytes a value more while it runs).
+    /// a running mean, which the run ends with (1 or more: off). The mean holds a copy of the
+    /// grid's values (4 bytes a value more while it runs). Off for SH fields, whose rates decay
+    /// to `lr_final`.
     ///
     /// [`Trainer::take_average`]: super::Trainer::take_average
     pub average_from: f32,
+    /// `average_from` for a field coloured by a network, whose rates decay only to
+    /// `lr_final_network`, so its late values scatter by a step of about that rate around where
+    /// their gradients balance (examples/results/field.md, "The mean of the last parameters").
+    pub average_from_network: f32,
     pub average_every: usize,
     pub render: RenderOptions,
 }
@@ -151,6 +156,7 @@ impl Default for TrainConfig {
             // "Pruning the faint shell"). Scene fields used it already.
             prune_alpha: 0.01,
             average_from: 1.0,
+            average_from_network: 0.8,
             average_every: 500,
             // Training samples every voxel; rendering and evaluation every half voxel. Measured
             // on lego 200^2 in 90 s: step 1.0 with 2048-ray batches gave 31.2 dB against 28.3 dB
