@@ -655,46 +655,35 @@ fn a_network_field_ends_on_the_mean_of_its_last_parameters() {
         "{}",
         report.why
     );
-    let mut snaps: Vec<(Vec<f32>, Vec<f32>)> = Vec::new();
+    let (mut grids, mut nets) = (Vec::new(), Vec::new());
     for _ in 0..20 {
         by_hand.train_step(&views, &rays);
         let t = &by_hand;
         if t.step >= 12 && t.step % 2 == 0 {
-            let net = t.field.net.as_ref().unwrap().weights.clone();
-            snaps.push((t.field.grid.data.clone(), net));
+            grids.push(t.field.grid.data.clone());
+            nets.push(t.field.net.as_ref().unwrap().weights.clone());
         }
     }
-    let last = by_hand.field.clone();
     let (mut t, rays, _) = field::prepare(&views, &[], &net_setup(), cfg.clone()).unwrap();
     let summary = field::run(&mut t, &views, &rays, &field::StopRule::default(), |_| {});
-    assert_eq!((summary.steps, summary.averaged), (20, snaps.len() as u32));
-    let mean = |of: &dyn Fn(&(Vec<f32>, Vec<f32>)) -> f32| {
-        snaps.iter().map(of).sum::<f32>() / snaps.len() as f32
-    };
+    assert_eq!((summary.steps, summary.averaged), (20, grids.len() as u32));
     let data = &t.field.grid.data;
-    assert_eq!(data.len(), last.grid.data.len());
-    let moved = data
-        .iter()
-        .zip(&last.grid.data)
-        .filter(|(a, b)| a != b)
-        .count();
+    let last = &by_hand.field.grid.data;
+    assert_eq!(data.len(), last.len());
+    let moved = data.iter().zip(last).filter(|(a, b)| a != b).count();
     assert!(
         moved > 1000,
         "only {moved} values differ from the last parameters"
     );
-    for (j, v) in data.iter().enumerate() {
-        let m = mean(&|s| s.0[j]);
-        assert!(
-            (v - m).abs() <= 1e-5 * (1.0 + m.abs()),
-            "value {j}: {v} against the mean {m}"
-        );
-    }
-    for (j, w) in t.field.net.as_ref().unwrap().weights.iter().enumerate() {
-        let m = mean(&|s| s.1[j]);
-        assert!(
-            (w - m).abs() <= 1e-5 * (1.0 + m.abs()),
-            "weight {j}: {w} against {m}"
-        );
+    let weights = &t.field.net.as_ref().unwrap().weights;
+    for (what, got, snaps) in [("value", data, &grids), ("weight", weights, &nets)] {
+        for (j, v) in got.iter().enumerate() {
+            let m = snaps.iter().map(|s| s[j]).sum::<f32>() / snaps.len() as f32;
+            assert!(
+                (v - m).abs() <= 1e-5 * (1.0 + m.abs()),
+                "{what} {j}: {v} against the mean {m}"
+            );
+        }
     }
     // Stopped as a phase (before the schedule's end), the run keeps its last parameters.
     let (mut p, rays, _) = field::prepare(&views, &[], &net_setup(), cfg).unwrap();

@@ -214,6 +214,7 @@ mod tests {
                 rays_per_second: 1.0,
                 final_psnr: psnr,
                 stopped_by: stopped_by.into(),
+                averaged: 0,
             },
             vertices: 0,
             dims: [1; 3],

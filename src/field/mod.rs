@@ -40,6 +40,14 @@
 //!   when a ray crosses it, at lego 800^2 about once in 200 steps, so a steep decay leaves the
 //!   late touches too small to finish the detail (`examples/results/field.md`, "Learning rates
 //!   that decay less").
+//! - **A network field ends on the mean of its last parameters** (Polyak averaging,
+//!   `TrainConfig::average_from_network`: the grid's values and the network's weights every 500
+//!   steps over the last 20% of the run): with its rates decaying only to 0.1, each late touch
+//!   moves a vertex by about that rate, and the mean sits nearer where the gradients balance
+//!   than the last values do. Lego 800^2 in 20 min: +0.06 dB on the test views against the same
+//!   run's last parameters, on 22 of 25 views, in two runs (windows from 60% to 95% and an
+//!   exponential mean all within 0.03 dB of it); it holds one more copy of the grid's values
+//!   for that part of the run (examples/results/field.md, "The mean of the last parameters").
 //! - **Density post-activated** as DVGO: interpolate the raw value, then softplus and alpha, so a
 //!   cell can hold a sharp surface; `delta` is in finest-voxel units so coarse-to-fine growth keeps
 //!   densities meaningful.

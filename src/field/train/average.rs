@@ -3,6 +3,7 @@
 //! the last values of a vertex scatter around where its gradient balances; their mean lies
 //! nearer that point than any one of them.
 
+use super::Trainer;
 use rayon::prelude::*;
 
 /// Values folded per parallel task (large enough that the split costs nothing).
@@ -42,6 +43,46 @@ impl ParamAverage {
             .zip(data.par_chunks(FOLD_CHUNK))
             .for_each(|(a, p)| fold(a, p));
         fold(&mut self.net, net);
+    }
+}
+
+impl Trainer {
+    /// Fold the parameters into the running mean when the schedule says so.
+    pub(super) fn maybe_fold_average(&mut self) {
+        let cfg = &self.cfg;
+        if cfg.average_from >= 1.0
+            || self.progress() < cfg.average_from
+            || self.step % cfg.average_every.max(1) != 0
+        {
+            return;
+        }
+        let c = std::time::Instant::now();
+        let data = &self.field.grid.data;
+        let net = self.field.net.as_ref().map_or(&[][..], |n| &n.weights[..]);
+        match &mut self.average {
+            Some(a) => a.fold(data, net),
+            None => self.average = Some(ParamAverage::start(data, net)),
+        }
+        self.phase_secs[3] += c.elapsed().as_secs_f64();
+    }
+
+    /// Whether a running mean is kept (the run has passed `cfg.average_from`).
+    pub fn has_average(&self) -> bool {
+        self.average.is_some()
+    }
+
+    /// End the run on the mean of its last parameters
+    /// ([`super::TrainConfig::average_from`]) if one was kept; returns how many snapshots it
+    /// averaged (0: none, the field is as trained).
+    pub fn take_average(&mut self) -> u32 {
+        let Some(a) = self.average.take() else {
+            return 0;
+        };
+        self.field.grid.data = a.data;
+        if let Some(net) = self.field.net.as_mut() {
+            net.weights = a.net;
+        }
+        a.count
     }
 }
 

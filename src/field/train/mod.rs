@@ -22,7 +22,6 @@ use super::render::forward;
 use super::view::View;
 use crate::util::bf16::to_bf16;
 use crate::util::Rng;
-use average::ParamAverage;
 use config::AUTO_RAY_RUN_BYTES;
 use optim::{split_by, AdamStep, SlabScatter, Slabs};
 use rayon::prelude::*;
@@ -65,14 +64,15 @@ pub struct Trainer {
     /// progress is further along, so a short budget still reaches the finest grid. Left at 0
     /// (no budget), training depends on the seed alone.
     pub time_frac: f32,
-    /// Seconds spent in (forward + backward, gradient scatter, TV + Adam, occupancy pruning).
+    /// Seconds spent in (forward + backward, gradient scatter, TV + Adam, occupancy pruning and
+    /// parameter averaging).
     pub phase_secs: [f64; 4],
     /// Bytes the grid and its optimiser state may take at the finest stage (None: as planned).
     pub budget: Option<usize>,
     /// How the finest stage's resolution was chosen, once it started.
     pub finest: Option<FinestStage>,
     /// The running mean of the parameters, once `cfg.average_from` has passed.
-    average: Option<ParamAverage>,
+    average: Option<average::ParamAverage>,
 }
 
 /// The finest stage's grid: chosen when it starts, from the bricks the occupied cells need.
@@ -558,43 +558,6 @@ impl Trainer {
             .for_each(|(si, ((((p, g), m), v), list))| {
                 step.apply(p, g, m, v, list, bounds[si], ch);
             });
-    }
-
-    /// Fold the parameters into the running mean when the schedule says so.
-    fn maybe_fold_average(&mut self) {
-        let cfg = &self.cfg;
-        if cfg.average_from >= 1.0
-            || self.progress() < cfg.average_from
-            || self.step % cfg.average_every.max(1) != 0
-        {
-            return;
-        }
-        let c = std::time::Instant::now();
-        let data = &self.field.grid.data;
-        let net = self.field.net.as_ref().map_or(&[][..], |n| &n.weights[..]);
-        match &mut self.average {
-            Some(a) => a.fold(data, net),
-            None => self.average = Some(ParamAverage::start(data, net)),
-        }
-        self.phase_secs[3] += c.elapsed().as_secs_f64();
-    }
-
-    /// Whether a running mean is kept (the run has passed `cfg.average_from`).
-    pub fn has_average(&self) -> bool {
-        self.average.is_some()
-    }
-
-    /// End the run on the mean of its last parameters ([`TrainConfig::average_from`]) if one
-    /// was kept; returns how many snapshots it averaged (0: none, the field is as trained).
-    pub fn take_average(&mut self) -> u32 {
-        let Some(a) = self.average.take() else {
-            return 0;
-        };
-        self.field.grid.data = a.data;
-        if let Some(net) = self.field.net.as_mut() {
-            net.weights = a.net;
-        }
-        a.count
     }
 
     /// Sum the chunks' network gradients in chunk order and step the network.
