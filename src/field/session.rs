@@ -627,7 +627,7 @@ pub fn run(
     // A phase of a longer schedule goes on from its last parameters; the end of the schedule
     // takes their mean where one was kept.
     let phase_end =
-        stopped_by == "phase time" || trainer.step < trainer.cfg.steps && stopped_by == "steps";
+        stopped_by == "phase time" || (stopped_by == "steps" && trainer.step < trainer.cfg.steps);
     let averaged = if phase_end || stop.keep_last {
         0
     } else {
