@@ -192,7 +192,6 @@ fn demo_edits_against_exact_truth() {
 /// The box (min, max) of the cells of `f` whose densest corner makes one finest voxel at least
 /// half opaque: the object's visible extent.
 fn opaque_extent(f: &objnerf::field::Field) -> (DVec3, DVec3) {
-    let ch = f.grid.channels;
     let shift = f.shift();
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     for c in f.occupied_cell_list() {
@@ -202,7 +201,7 @@ fn opaque_extent(f: &objnerf::field::Field) -> (DVec3, DVec3) {
                 .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
             v != u32::MAX
                 && 1.0
-                    - (-objnerf::field::activation::softplus(f.grid.data[v as usize * ch] + shift))
+                    - (-objnerf::field::activation::softplus(f.grid.density(v as usize) + shift))
                         .exp()
                     >= 0.5
         });

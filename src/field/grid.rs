@@ -1,7 +1,13 @@
 //! Sparse vertex grids: vertices are stored in bricks of [`BRICK`]^3, and only the bricks that
-//! hold something are allocated, so memory follows the occupied surface rather than the box. All
-//! channels of a vertex sit together, so one trilinear interpolation touches 8 short runs of
-//! memory, not 8 x C. An unallocated vertex reads as the grid's `fill` value.
+//! hold something are allocated, so memory follows the occupied surface rather than the box. An
+//! unallocated vertex reads as the grid's `fill` value.
+//!
+//! A brick's values are its 64 densities (channel 0), then its vertices' other channels (colour
+//! or features) vertex by vertex. The march reads the density of every sample and the colour of
+//! few, so the densities of a cell's 8 corners lie in two 64-byte lines of memory (one per
+//! z-layer of the brick) instead of eight runs of C values; the colour of a vertex is still one
+//! contiguous run. [`density_index`] and [`colour_index`] say where a vertex's values lie in any
+//! buffer laid out like `data` (gradients, optimiser moments).
 //!
 //! Positions are in grid units: vertex (i, j, k) sits at (i, j, k); the grid spans
 //! [0, nx-1] x [0, ny-1] x [0, nz-1]. Bricks are indexed x-fastest; allocated bricks take slots
@@ -9,6 +15,7 @@
 //! hands each thread such a slab). A vertex's *slot index* is `slot * BRICK^3 + local`, local
 //! x-fastest inside its brick.
 
+use crate::util::mem::prefetch;
 use rayon::prelude::*;
 
 /// Vertices per brick side.
@@ -30,7 +37,8 @@ pub struct Grid {
     index: Vec<u32>,
     /// Per slot: the brick's position in bricks, slots in (z, y, x) order.
     bricks: Vec<[u32; 3]>,
-    /// Per slot, BRICK^3 vertices (x-fastest), each `channels` values.
+    /// Per slot, BRICK^3 values of channel 0 (vertices x-fastest), then BRICK^3 runs of the
+    /// other `channels - 1` (see the module notes).
     pub data: Vec<f32>,
     /// What an unallocated vertex holds.
     fill: Vec<f32>,
@@ -76,13 +84,13 @@ impl Grid {
                 }
             }
         }
-        let data = fill.repeat(bricks.len() * BRICK_VERTICES);
+        let data = brick_of(fill).repeat(bricks.len());
         Grid::from_parts(dims, channels, fill, bricks, data)
             .expect("bricks listed in (z, y, x) order inside the grid")
     }
 
     /// A grid from saved parts: the allocated bricks' positions (in (z, y, x) order) and their
-    /// vertices' values. Errors say what does not fit.
+    /// vertices' values (laid out as `data`). Errors say what does not fit.
     pub fn from_parts(
         dims: [usize; 3],
         channels: usize,
@@ -195,14 +203,39 @@ impl Grid {
     pub fn get(&self, x: usize, y: usize, z: usize, c: usize) -> f32 {
         match self.vertex_slot(x, y, z) {
             NONE => self.fill[c],
-            v => self.data[v as usize * self.channels + c],
+            v => self.data[value_index(v as usize, c, self.channels)],
         }
     }
 
-    /// The values of slot index `v` (which must be allocated).
+    /// The raw density (channel 0) of slot index `v` (which must be allocated).
     #[inline]
-    pub fn vertex(&self, v: usize) -> &[f32] {
-        &self.data[v * self.channels..(v + 1) * self.channels]
+    pub fn density(&self, v: usize) -> f32 {
+        self.data[density_index(v, self.channels)]
+    }
+
+    #[inline]
+    pub fn density_mut(&mut self, v: usize) -> &mut f32 {
+        &mut self.data[density_index(v, self.channels)]
+    }
+
+    /// The other channels (colour or features) of slot index `v`.
+    #[inline]
+    pub fn colour(&self, v: usize) -> &[f32] {
+        let o = colour_index(v, self.channels);
+        &self.data[o..o + self.channels - 1]
+    }
+
+    #[inline]
+    pub fn colour_mut(&mut self, v: usize) -> &mut [f32] {
+        let o = colour_index(v, self.channels);
+        &mut self.data[o..o + self.channels - 1]
+    }
+
+    /// Every channel of slot index `v`, density first.
+    pub fn vertex_values(&self, v: usize) -> Vec<f32> {
+        let mut out = vec![self.density(v)];
+        out.extend_from_slice(self.colour(v));
+        out
     }
 
     /// The cell containing `p` (clamped into the grid) and the fractional position inside it.
@@ -255,36 +288,55 @@ impl Grid {
         Corners { idx, w }
     }
 
+    /// Ask the cache for what a sample in cell `b` will read (a hint, no effect on results):
+    /// its corners' densities (the two z-layers of its brick) and the colour of its four
+    /// x-adjacent corner pairs. The march calls it a sample ahead, so that the next sample's
+    /// misses overlap this sample's work.
+    #[inline]
+    pub fn prefetch_cell(&self, b: [usize; 3]) {
+        let v = self.vertex_slot(b[0], b[1], b[2]);
+        if v == NONE {
+            return;
+        }
+        let (v, ch) = (v as usize, self.channels);
+        let d = density_index(v, ch);
+        prefetch(&self.data, d);
+        prefetch(&self.data, d + BRICK * BRICK);
+        let c = colour_index(v, ch);
+        let (y, z) = (BRICK * (ch - 1), BRICK * BRICK * (ch - 1));
+        for o in [0, y, z, y + z] {
+            prefetch(&self.data, c + o);
+        }
+    }
+
     #[inline]
     pub fn corners(&self, p: [f32; 3]) -> Corners {
         let (b, f) = self.locate(p);
         self.corners_of(b, f)
     }
 
-    /// Interpolate channel `c` alone.
+    /// The 8 corners' raw densities (the fill's where unallocated).
     #[inline]
-    pub fn interp_channel(&self, k: &Corners, c: usize) -> f32 {
+    fn corner_densities(&self, k: &Corners) -> [f32; 8] {
         let ch = self.channels;
-        let mut s = 0.0;
-        for i in 0..8 {
-            let v = match k.idx[i] {
-                NONE => self.fill[c],
-                v => self.data[v as usize * ch + c],
-            };
-            s += k.w[i] * v;
-        }
-        s
+        k.idx.map(|v| match v {
+            NONE => self.fill[0],
+            v => self.data[density_index(v as usize, ch)],
+        })
     }
 
-    /// The gradient of channel `c`'s trilinear interpolation at fraction `f` of the cell whose
-    /// corners are `k`, per voxel of this grid.
+    /// Interpolate the raw density (channel 0).
     #[inline]
-    pub fn interp_gradient(&self, k: &Corners, c: usize, f: [f32; 3]) -> [f32; 3] {
-        let ch = self.channels;
-        let v = k.idx.map(|i| match i {
-            NONE => self.fill[c],
-            i => self.data[i as usize * ch + c],
-        });
+    pub fn interp_density(&self, k: &Corners) -> f32 {
+        let d = self.corner_densities(k);
+        (0..8).map(|i| k.w[i] * d[i]).sum()
+    }
+
+    /// The gradient of the raw density's trilinear interpolation at fraction `f` of the cell
+    /// whose corners are `k`, per voxel of this grid.
+    #[inline]
+    pub fn density_gradient(&self, k: &Corners, f: [f32; 3]) -> [f32; 3] {
+        let v = self.corner_densities(k);
         let g = f.map(|x| 1.0 - x);
         // Corner i is (i & 1, i >> 1 & 1, i >> 2): each axis's gradient is the bilinear
         // interpolation, over the other two axes, of the differences along it.
@@ -306,18 +358,19 @@ impl Grid {
         [along(0), along(1), along(2)]
     }
 
-    /// Interpolate channels `from..from + out.len()` into `out`.
+    /// Interpolate the first `out.len()` colour channels (channels 1..) into `out`.
     #[inline]
-    pub fn interp_range(&self, k: &Corners, from: usize, out: &mut [f32]) {
+    pub fn interp_colour(&self, k: &Corners, out: &mut [f32]) {
         let ch = self.channels;
+        let n = out.len();
         out.iter_mut().for_each(|o| *o = 0.0);
         for i in 0..8 {
             let w = k.w[i];
             let src = match k.idx[i] {
-                NONE => &self.fill[from..from + out.len()],
+                NONE => &self.fill[1..1 + n],
                 v => {
-                    let base = v as usize * ch + from;
-                    &self.data[base..base + out.len()]
+                    let base = colour_index(v as usize, ch);
+                    &self.data[base..base + n]
                 }
             };
             for (o, s) in out.iter_mut().zip(src) {
@@ -326,23 +379,25 @@ impl Grid {
         }
     }
 
-    /// Interpolate every channel at `p`.
+    /// Interpolate every channel at `p` (density first).
     pub fn sample(&self, p: [f32; 3], out: &mut [f32]) {
         let k = self.corners(p);
-        self.interp_range(&k, 0, out);
+        out[0] = self.interp_density(&k);
+        self.interp_colour(&k, &mut out[1..]);
     }
 
-    /// Backward of [`Grid::interp_range`]: add `w_i * g` to each allocated corner's channels in
-    /// `grad` (a buffer laid out like `data`).
+    /// Backward of interpolating every channel: add `w_i * g` to each allocated corner's
+    /// channels in `grad` (a buffer laid out like `data`; `g` density first).
     #[inline]
     pub fn scatter(grad: &mut [f32], channels: usize, k: &Corners, g: &[f32]) {
         for i in 0..8 {
             if k.idx[i] == NONE {
                 continue;
             }
-            let w = k.w[i];
-            let base = k.idx[i] as usize * channels;
-            for (d, s) in grad[base..base + channels].iter_mut().zip(g) {
+            let (w, v) = (k.w[i], k.idx[i] as usize);
+            grad[density_index(v, channels)] += w * g[0];
+            let base = colour_index(v, channels);
+            for (d, s) in grad[base..base + channels - 1].iter_mut().zip(&g[1..]) {
                 *d += w * s;
             }
         }
@@ -361,13 +416,17 @@ impl Grid {
             .par_chunks_mut(BRICK_VERTICES * ch)
             .zip(bricks.par_iter())
             .for_each(|(brick, b)| {
-                for (l, v) in brick.chunks_exact_mut(ch).enumerate() {
+                let mut v = vec![0f32; ch];
+                for l in 0..BRICK_VERTICES {
                     let p = [
                         (b[0] as usize * BRICK + l % BRICK) as f32 * scale[0],
                         (b[1] as usize * BRICK + (l / BRICK) % BRICK) as f32 * scale[1],
                         (b[2] as usize * BRICK + l / (BRICK * BRICK)) as f32 * scale[2],
                     ];
-                    self.sample(p, v);
+                    self.sample(p, &mut v);
+                    brick[density_index(l, ch)] = v[0];
+                    let o = colour_index(l, ch);
+                    brick[o..o + ch - 1].copy_from_slice(&v[1..]);
                 }
             });
         out
@@ -421,6 +480,51 @@ fn local(x: usize, y: usize, z: usize) -> usize {
     x % BRICK + BRICK * (y % BRICK + BRICK * (z % BRICK))
 }
 
+/// Where slot index `v`'s raw density lies in a buffer laid out like [`Grid::data`] with
+/// `channels` values a vertex (or in a slice of it that starts at a brick).
+#[inline(always)]
+pub fn density_index(v: usize, channels: usize) -> usize {
+    (v / BRICK_VERTICES) * BRICK_VERTICES * channels + v % BRICK_VERTICES
+}
+
+/// Where slot index `v`'s other channels begin (`channels - 1` values in a row), as
+/// [`density_index`].
+#[inline(always)]
+pub fn colour_index(v: usize, channels: usize) -> usize {
+    let (s, l) = (v / BRICK_VERTICES, v % BRICK_VERTICES);
+    s * BRICK_VERTICES * channels + BRICK_VERTICES + l * (channels - 1)
+}
+
+/// Where channel `c` of slot index `v` lies, as [`density_index`].
+#[inline]
+pub fn value_index(v: usize, c: usize, channels: usize) -> usize {
+    match c {
+        0 => density_index(v, channels),
+        c => colour_index(v, channels) + c - 1,
+    }
+}
+
+/// One brick's values with every vertex holding `fill`, laid out as [`Grid::data`].
+fn brick_of(fill: &[f32]) -> Vec<f32> {
+    let mut out = vec![fill[0]; BRICK_VERTICES];
+    out.extend(fill[1..].repeat(BRICK_VERTICES));
+    out
+}
+
+/// Rewrite bricks of values stored vertex by vertex (every channel of a vertex together, the
+/// layout of model files before version 5) into [`Grid::data`]'s layout, in place.
+pub fn from_interleaved(buf: &mut [f32], channels: usize) {
+    let mut scratch = vec![0f32; BRICK_VERTICES * channels];
+    for brick in buf.chunks_exact_mut(BRICK_VERTICES * channels) {
+        for (l, v) in brick.chunks_exact(channels).enumerate() {
+            scratch[density_index(l, channels)] = v[0];
+            let o = colour_index(l, channels);
+            scratch[o..o + channels - 1].copy_from_slice(&v[1..]);
+        }
+        brick.copy_from_slice(&scratch);
+    }
+}
+
 /// Apply a slot map from [`Grid::compact`] to a buffer laid out like the grid's data (`per`
 /// values per slot): kept slots move down, the rest are dropped.
 pub fn compact_buffer<T: Copy>(buf: &mut Vec<T>, map: &[u32], per: usize) {
@@ -447,8 +551,8 @@ mod tests {
                         continue;
                     }
                     let v = v as usize;
-                    g.data[v * 2] = 1.0 + 2.0 * x as f32 - 0.5 * y as f32 + 3.0 * z as f32;
-                    g.data[v * 2 + 1] = (x * y + z) as f32;
+                    *g.density_mut(v) = 1.0 + 2.0 * x as f32 - 0.5 * y as f32 + 3.0 * z as f32;
+                    g.colour_mut(v)[0] = (x * y + z) as f32;
                 }
             }
         }
@@ -490,13 +594,13 @@ mod tests {
             .for_each(|(i, v)| *v = (i as f32 * 0.37).sin());
         for p in [[0.3f32, 1.7, 2.2], [3.6, 3.2, 3.9], [2.5, 0.5, 7.4]] {
             let (b, f) = g.locate(p);
-            let grad = g.interp_gradient(&g.corners_of(b, f), 0, f);
+            let grad = g.density_gradient(&g.corners_of(b, f), f);
             for a in 0..3 {
                 let eps = 1e-2;
                 let (mut hi, mut lo) = (f, f);
                 hi[a] += eps;
                 lo[a] -= eps;
-                let at = |fr: [f32; 3]| g.interp_channel(&g.corners_of(b, fr), 0);
+                let at = |fr: [f32; 3]| g.interp_density(&g.corners_of(b, fr));
                 let num = (at(hi) - at(lo)) / (2.0 * eps);
                 assert!(
                     (num - grad[a]).abs() < 1e-3,
@@ -505,6 +609,23 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn bricks_stored_vertex_by_vertex_convert_to_the_layout() {
+        // Channel c of slot index v held i = v * 3 + c when every channel of a vertex sat
+        // together; after conversion each reads back where it was, density and colour.
+        let mut g = Grid::new([6, 5, 9], 3, &[0.0; 3]);
+        g.data
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, x)| *x = i as f32);
+        from_interleaved(&mut g.data, 3);
+        for v in 0..g.num_vertices() {
+            assert_eq!(g.vertex_values(v), [0, 1, 2].map(|c| (v * 3 + c) as f32));
+        }
+        let [x, y, z] = g.vertex_coords(70);
+        assert_eq!(g.get(x, y, z, 2), 212.0);
     }
 
     #[test]
@@ -522,7 +643,8 @@ mod tests {
         let g = ramp(|_| true);
         let k = g.corners([3.3, 0.6, 3.9]);
         let mut out = [0.0; 2];
-        g.interp_range(&k, 0, &mut out);
+        out[0] = g.interp_density(&k);
+        g.interp_colour(&k, &mut out[1..]);
         let up = [0.7f32, -1.3];
         let lhs = out[0] * up[0] + out[1] * up[1];
         let mut grad = vec![0.0; g.data.len()];

@@ -480,10 +480,14 @@ mod tests {
             "nothing opens far in front of the wall"
         );
         let densest = (0..f.grid.num_vertices() as u32)
-            .max_by(|&a, &b| f.grid.vertex(a as usize)[0].total_cmp(&f.grid.vertex(b as usize)[0]))
+            .max_by(|&a, &b| {
+                f.grid
+                    .density(a as usize)
+                    .total_cmp(&f.grid.density(b as usize))
+            })
             .unwrap();
         assert!((14..=15).contains(&f.grid.vertex_coords(densest)[2]));
-        let v = f.grid.vertex(densest as usize);
+        let v = f.grid.vertex_values(densest as usize);
         let alpha = 1.0 - (-crate::field::activation::softplus(v[0] + f.shift())).exp();
         assert!(alpha > 0.25, "seeded opaque: alpha {alpha}");
         let red = crate::field::activation::sigmoid(0.282_094_8 * v[1]);

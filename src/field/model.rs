@@ -118,7 +118,7 @@ impl Field {
     pub fn reflection_basis(&self, k: &Corners, fr: [f32; 3], d: Vec3) -> [f32; SH_TERMS] {
         let mut basis = [0f32; SH_TERMS];
         if self.net.as_ref().is_some_and(|n| n.refl_terms > 0) {
-            let g = Vec3::from(self.grid.interp_gradient(k, 0, fr));
+            let g = Vec3::from(self.grid.density_gradient(k, fr));
             sh_basis(self.config.sh_degree, reflect(d, g), &mut basis);
         }
         basis
@@ -371,7 +371,6 @@ impl Field {
     pub fn seed_surfaces(&mut self, seeds: &[(Vec3, [u8; 3])]) {
         let raw = self.raw_for_alpha(SEED_ALPHA, 1.0);
         let k = self.sh_k();
-        let ch = self.grid.channels;
         // sigmoid(C0 * dc) = colour
         const C0: f32 = 0.282_094_8;
         for (p, rgb) in seeds {
@@ -388,15 +387,16 @@ impl Field {
                 if v == NONE {
                     continue;
                 }
-                let vals = &mut self.grid.data[v as usize * ch..(v as usize + 1) * ch];
-                vals[0] = vals[0].max(raw);
+                let density = self.grid.density_mut(v as usize);
+                *density = density.max(raw);
                 // A colour network's features have no colour of their own to set.
                 if self.net.is_some() {
                     continue;
                 }
+                let colour = self.grid.colour_mut(v as usize);
                 for c in 0..3 {
                     let x = (rgb[c] as f32 / 255.0).clamp(0.02, 0.98);
-                    vals[1 + c * k] = (x / (1.0 - x)).ln() / C0;
+                    colour[c * k] = (x / (1.0 - x)).ln() / C0;
                 }
             }
         }
@@ -543,7 +543,7 @@ pub(super) mod tests {
         f.set_occupied([1, 1, 1], true);
         f.release_free_bricks();
         assert_eq!(f.grid.num_slots(), 1);
-        let kept = f.grid.vertex(f.grid.vertex_slot(2, 2, 2) as usize).to_vec();
+        let kept = f.grid.vertex_values(f.grid.vertex_slot(2, 2, 2) as usize);
         // [9, 9, 9] lies in brick (2, 2, 2), released; [1, 1, 1] is occupied already; [12, ...]
         // is past the last cell.
         let opened = f.occupy(&[[1, 1, 1], [9, 9, 9], [12, 0, 0]]);
@@ -551,13 +551,13 @@ pub(super) mod tests {
         assert!(f.occupied([1, 1, 1]) && f.occupied([9, 9, 9]));
         assert_eq!(f.occupied_cells(), 2);
         assert_eq!(
-            f.grid.vertex(f.grid.vertex_slot(2, 2, 2) as usize),
-            &kept[..]
+            f.grid.vertex_values(f.grid.vertex_slot(2, 2, 2) as usize),
+            kept
         );
         // The brought-back brick holds a new cell's values (density 0: alpha_init, grey).
         let v = f.grid.vertex_slot(10, 10, 10);
         assert_ne!(v, NONE);
-        assert!(f.grid.vertex(v as usize).iter().all(|&x| x == 0.0));
+        assert!(f.grid.vertex_values(v as usize).iter().all(|&x| x == 0.0));
         assert!(f.occupy(&[[9, 9, 9]]).is_empty());
     }
 }

@@ -77,12 +77,11 @@ impl Field {
     /// that of its densest corner: the bound is exact and skipping loses nothing above `thresh`.
     /// Cells already free stay free (the visual hull carved them).
     pub fn prune_occupancy(&mut self, delta: f32, thresh: f32) {
-        let ch = self.grid.channels;
         let raw_min = self.raw_for_alpha(thresh, delta);
         let grid = &self.grid;
         let dense = |x: usize, y: usize, z: usize| match grid.vertex_slot(x, y, z) {
             NONE => false,
-            v => grid.data[v as usize * ch] >= raw_min,
+            v => grid.density(v as usize) >= raw_min,
         };
         // Each word on its own, in parallel.
         let kept: Vec<u64> = self
@@ -170,15 +169,14 @@ mod tests {
     fn pruning_and_release_follow_the_cells() {
         let mut f = unit_cube_field(0, [23, 18, 15]);
         let mut r = crate::util::Rng::new(3);
-        let ch = f.grid.channels;
         for v in 0..f.grid.num_vertices() {
-            f.grid.data[v * ch] = if r.f32() < 0.02 { 5.0 } else { -20.0 };
+            *f.grid.density_mut(v) = if r.f32() < 0.02 { 5.0 } else { -20.0 };
         }
         let (delta, thresh) = (1.0, 0.01);
         let raw_min = f.raw_for_alpha(thresh, delta);
         let dense = |f: &Field, x, y, z| match f.grid.vertex_slot(x, y, z) {
             NONE => false,
-            v => f.grid.data[v as usize * ch] >= raw_min,
+            v => f.grid.density(v as usize) >= raw_min,
         };
         let expected: Vec<[usize; 3]> = f
             .occupied_cell_list()
@@ -218,7 +216,10 @@ mod tests {
                     f.grid.vertex_slot(v[0], v[1], v[2]),
                     before.grid.vertex_slot(v[0], v[1], v[2]),
                 );
-                assert_eq!(f.grid.vertex(a as usize), before.grid.vertex(b as usize));
+                assert_eq!(
+                    f.grid.vertex_values(a as usize),
+                    before.grid.vertex_values(b as usize)
+                );
             }
         }
     }

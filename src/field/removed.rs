@@ -59,7 +59,6 @@ fn removed_hull(field: &Field, views: &[View]) -> Vec<[usize; 3]> {
 /// a vertex already below it keeps its value.
 fn set_cells_density(field: &mut Field, cells: &[[usize; 3]], logit: f32, only_lower: bool) {
     let value = logit - field.shift();
-    let ch = field.grid.channels;
     for c in cells {
         for i in 0..8 {
             let v = field
@@ -68,12 +67,13 @@ fn set_cells_density(field: &mut Field, cells: &[[usize; 3]], logit: f32, only_l
             if v == super::grid::NONE {
                 continue;
             }
-            let v = v as usize * ch;
+            let v = v as usize;
+            let density = field.grid.density_mut(v);
             if only_lower {
-                field.grid.data[v] = field.grid.data[v].min(value);
+                *density = density.min(value);
             } else {
-                field.grid.data[v] = value;
-                field.grid.data[v + 1..v + ch].fill(0.0);
+                *density = value;
+                field.grid.colour_mut(v).fill(0.0);
             }
         }
     }
@@ -166,10 +166,9 @@ mod tests {
         };
         let mut f = Field::new(cfg, Vec3::splat(-1.0), Vec3::splat(1.0), dims);
         let shift = f.shift();
-        let ch = f.grid.channels;
         for v in 0..f.grid.num_vertices() {
             let z = f.grid.vertex_coords(v as u32)[2];
-            f.grid.data[v * ch] = if z >= 14 { 10.0 } else { CLEARED_LOGIT } - shift;
+            *f.grid.density_mut(v) = if z >= 14 { 10.0 } else { CLEARED_LOGIT } - shift;
         }
         let cam = Camera::pinhole(16, 16, 20.0, 20.0, 8.0, 8.0);
         let views: Vec<View> = [0.0, 0.3]
@@ -183,7 +182,9 @@ mod tests {
             })
             .collect();
         let density = |f: &Field, c: [usize; 3]| {
-            f.grid.data[f.grid.vertex_slot(c[0], c[1], c[2]) as usize * ch] + shift
+            f.grid
+                .density(f.grid.vertex_slot(c[0], c[1], c[2]) as usize)
+                + shift
         };
         assert!(empty_air_in_holes(&mut f, &RenderOptions::default(), &views) > 0);
         assert_eq!(

@@ -84,7 +84,7 @@ fn raw_at(field: &Field, p: Vec3) -> f32 {
         return EMPTY;
     }
     let k = field.grid.corners_of(b, fr);
-    field.grid.interp_channel(&k, 0)
+    field.grid.interp_density(&k)
 }
 
 /// Colour at a world point seen along `dir` whose SH basis is `basis`, linear 0..1.
@@ -100,7 +100,7 @@ fn color_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32;
     let k = field.grid.corners_of(b, fr);
     let mut feat = [0f32; MAX_CHANNELS];
     let ch = field.grid.channels;
-    field.grid.interp_range(&k, 1, &mut feat[..ch - 1]);
+    field.grid.interp_colour(&k, &mut feat[..ch - 1]);
     let mut h = [0f32; MAX_ACTIVATIONS];
     let refl = field.reflection_basis(&k, fr, dir);
     field.shade(&feat, &refl, &field.shading(*basis), &mut h)

@@ -268,15 +268,14 @@ mod tests {
             Vec3::splat(1.0),
             [41, 41, 41],
         );
-        let ch = f.grid.channels;
         // SH DC coefficient whose sigmoid(C0 * k) is the colour.
         let logit = |v: f32| (v / (1.0 - v)).ln() / 0.282_094_8;
         for v in 0..f.grid.num_vertices() {
             let [x, y, z] = f.grid.vertex_coords(v as u32);
             let p = Vec3::new(x as f32, y as f32, z as f32) * f.voxel - 1.0;
-            f.grid.data[v * ch] = if (p - c).length() < r { 8.0 } else { -30.0 };
+            *f.grid.density_mut(v) = if (p - c).length() < r { 8.0 } else { -30.0 };
             for (k, c) in rgb.iter().enumerate() {
-                f.grid.data[v * ch + 1 + k] = logit(*c);
+                f.grid.colour_mut(v)[k] = logit(*c);
             }
         }
         f.prune_occupancy(0.5, 1e-4);
@@ -353,10 +352,10 @@ mod tests {
     fn overlapping_fields_add_and_nearer_fields_hide() {
         let f = ball(Vec3::ZERO, 0.5, [0.5, 0.5, 0.5]);
         let mut thin = f.clone();
-        let ch = thin.grid.channels;
         for v in 0..thin.grid.num_vertices() {
-            if thin.grid.data[v * ch] > 0.0 {
-                thin.grid.data[v * ch] = 0.0;
+            let density = thin.grid.density_mut(v);
+            if *density > 0.0 {
+                *density = 0.0;
             }
         }
         let one = Composite {

@@ -1,4 +1,4 @@
-//! Process memory, for reports and benchmarks.
+//! Process memory, for reports and benchmarks, and a cache hint for memory-bound passes.
 
 /// The process's peak resident set size in bytes (Linux `VmHWM`), or None where it is unknown.
 pub fn peak_rss_bytes() -> Option<u64> {
@@ -17,4 +17,20 @@ pub fn peak_rss_mib() -> u64 {
 /// [`peak_rss_bytes`] is the peak of what follows. False where that is not possible.
 pub fn reset_peak_rss() -> bool {
     std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// Ask for the cache line holding `buf[i]` (a hint: no effect on results; nothing off x86-64).
+#[inline(always)]
+pub fn prefetch<T>(buf: &[T], i: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(x) = buf.get(i) {
+        // SAFETY: a prefetch hint reads nothing and cannot fault; the pointer is in bounds.
+        unsafe {
+            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                (x as *const T).cast(),
+            )
+        };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (buf, i);
 }

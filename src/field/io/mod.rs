@@ -10,8 +10,10 @@
 //! arrays    in the header's order, each `length` values of its dtype, little-endian:
 //!           "bricks"    u64 per allocated brick: its position x | y << 21 | z << 42, in
 //!                       (z, y, x) order (bricks of 4^3 vertices, `field::grid`)
-//!           "grid"      f32, bricks * 64 vertices * channels, vertices x-fastest in their brick,
-//!                       channels per vertex [raw density, SH red (K), SH green (K), SH blue (K)]
+//!           "grid"      f32, bricks * 64 vertices * channels: per brick the 64 vertices' raw
+//!                       densities (x-fastest), then each vertex's other channels [SH red (K),
+//!                       SH green (K), SH blue (K)] or features in turn (version 5; versions 3
+//!                       and 4 kept every channel of a vertex together, and load converted)
 //!           "occupancy" u64 per brick, one bit per cell whose base vertex is in the brick
 //!           "colour_net" f32, the colour network's weights (version 4, when the header's
 //!                       `colour_net` gives its shape; the grid's channels are then [raw
@@ -23,7 +25,7 @@
 //! array ends, so a truncated or corrupted file is an error that says what is wrong.
 
 use super::colour_net::{ColourNet, MAX_HIDDEN, MAX_INPUTS};
-use super::grid::{Grid, BRICK_VERTICES};
+use super::grid::{from_interleaved, Grid, BRICK_VERTICES};
 use super::model::{Field, FieldConfig};
 use super::sh::sh_coeffs;
 use super::space::Space;
@@ -38,11 +40,12 @@ pub use arrays::ArrayInfo;
 use arrays::{read_arrays, Arrays, Blob};
 
 pub const MAGIC: &[u8; 8] = b"OBJNFLD\n";
+/// 5: a brick's densities apart from its other channels (`field::grid`'s layout).
 /// 4: an optional colour network (the header's `colour_net`, its weights in "colour_net").
 /// 3: sparse bricks ("bricks": the allocated bricks' positions; "grid", "occupancy" and the
 /// optimiser state per brick). 2: a dense grid with the field's [`Space`] in the header. 1: a
 /// dense box-space grid. Versions 1 and 2 still load (as a grid with every brick allocated).
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Header {
@@ -365,7 +368,7 @@ fn unpack_brick(v: u64) -> [u32; 3] {
 /// The optimiser's m and v, as saved.
 type AdamArrays = Option<(Vec<f32>, Vec<f32>)>;
 
-/// A version 3 file's field: bricks, their values and occupancy words.
+/// A version 3 to 5 file's field: bricks, their values and occupancy words.
 fn bricked_field(
     h: &Header,
     arrays: &mut Arrays,
@@ -389,11 +392,18 @@ fn bricked_field(
             v => Ok(v),
         }
     };
-    let data = f32s("grid")?.ok_or("no 'grid' array")?;
-    let adam = match (f32s("adam_m")?, f32s("adam_v")?) {
+    let mut data = f32s("grid")?.ok_or("no 'grid' array")?;
+    let mut adam = match (f32s("adam_m")?, f32s("adam_v")?) {
         (Some(m), Some(v)) if with_adam => Some((m, v)),
         _ => None,
     };
+    if h.version < 5 {
+        from_interleaved(&mut data, h.channels);
+        if let Some((m, v)) = adam.as_mut() {
+            from_interleaved(m, h.channels);
+            from_interleaved(v, h.channels);
+        }
+    }
     let occupancy = arrays
         .u64s
         .remove("occupancy")
@@ -462,7 +472,11 @@ fn dense_field(
             for x in 0..nx {
                 let v = field.grid.vertex_slot(x, y, z) as usize;
                 let src = (x + nx * (y + ny * z)) * ch;
-                field.grid.data[v * ch..(v + 1) * ch].copy_from_slice(&dense[src..src + ch]);
+                *field.grid.density_mut(v) = dense[src];
+                field
+                    .grid
+                    .colour_mut(v)
+                    .copy_from_slice(&dense[src + 1..src + ch]);
             }
         }
     }

@@ -14,7 +14,7 @@
 // Index loops over the 3 colour channels read as the maths does; iterators would obscure it.
 #![allow(clippy::needless_range_loop)]
 
-use super::activation::{sigmoid, softplus};
+use super::activation::alpha_and_slope;
 use super::colour_net::{MAX_ACTIVATIONS, MAX_HIDDEN};
 use super::grid::BRICK;
 use super::live::BLOCK;
@@ -128,6 +128,9 @@ struct Marcher<'a> {
     /// Sample spacing in finest voxels (alpha = 1 - exp(-density * delta)).
     delta: f32,
     shift: f32,
+    /// Raw density (with the shift) under which a sample is below `alpha_thresh`, a little
+    /// low so that the check before the exponentials drops nothing the exact test keeps.
+    raw_min: f32,
     trans: f32,
     out: RayOut,
     feat: [f32; MAX_CHANNELS],
@@ -142,13 +145,15 @@ impl<'a> Marcher<'a> {
     fn new(f: &'a Field, opt: &'a RenderOptions, d: Vec3, samples: &'a mut Vec<Sample>) -> Self {
         let mut basis = [0f32; SH_TERMS];
         sh_basis(f.config.sh_degree, d, &mut basis);
+        let delta = opt.step * f.voxel / f.config.base_voxel;
         Marcher {
             f,
             opt,
             shading: f.shading(basis),
             d,
-            delta: opt.step * f.voxel / f.config.base_voxel,
+            delta,
             shift: f.shift(),
+            raw_min: f.raw_for_alpha(opt.alpha_thresh, delta) + f.shift() - 1e-3,
             trans: 1.0,
             out: RayOut::default(),
             feat: [0f32; MAX_CHANNELS],
@@ -200,11 +205,16 @@ impl<'a> Marcher<'a> {
                 t = t0 + ks as f32 * step_w;
                 continue;
             }
+            ks += 1;
+            let t_next = t0 + ks as f32 * step_w;
+            // The march waits on memory: fetch the next sample's cell while this one shades.
+            let p_next = og + dg * t_next;
+            f.grid
+                .prefetch_cell(f.grid.locate([p_next.x, p_next.y, p_next.z]).0);
             if !self.visit(b, fr, depth.world_t(t)) {
                 break;
             }
-            ks += 1;
-            t = t0 + ks as f32 * step_w;
+            t = t_next;
         }
     }
 
@@ -217,8 +227,11 @@ impl<'a> Marcher<'a> {
             return true;
         }
         let kc = f.grid.corners_of(b, fr);
-        let raw = f.grid.interp_channel(&kc, 0) + self.shift;
-        let alpha = 1.0 - (-softplus(raw) * self.delta).exp();
+        let raw = f.grid.interp_density(&kc) + self.shift;
+        if raw < self.raw_min {
+            return true;
+        }
+        let (alpha, slope) = alpha_and_slope(raw, self.delta);
         if alpha < self.opt.alpha_thresh {
             return true;
         }
@@ -229,7 +242,7 @@ impl<'a> Marcher<'a> {
         let mut rgb = [0f32; 3];
         if shaded {
             let ch = f.grid.channels;
-            f.grid.interp_range(&kc, 1, &mut self.feat[..ch - 1]);
+            f.grid.interp_colour(&kc, &mut self.feat[..ch - 1]);
             let refl = f.reflection_basis(&kc, fr, self.d);
             rgb = f.shade(&self.feat, &refl, &self.shading, &mut self.h);
         }
@@ -245,7 +258,7 @@ impl<'a> Marcher<'a> {
             alpha,
             trans: self.trans,
             rgb,
-            dsp: sigmoid(raw),
+            dsp: slope,
             shaded,
         });
         self.trans *= 1.0 - alpha;
@@ -323,7 +336,7 @@ pub fn backward(
                 let kc = f
                     .grid
                     .corners_of(f.grid.cell_of_base(s.base as usize), s.frac);
-                f.grid.interp_range(&kc, 1, &mut feat[..ch - 1]);
+                f.grid.interp_colour(&kc, &mut feat[..ch - 1]);
                 let refl = f.reflection_basis(&kc, s.frac, d);
                 f.shade(&feat, &refl, &shading, &mut h);
                 let gc = g_rgb.map(|c| c * w);

@@ -17,11 +17,20 @@ fn random_field(seed: u64, degree: u32) -> Field {
         Vec3::splat(1.0),
         [5, 6, 5],
     );
-    let mut r = Rng::new(seed);
-    for v in f.grid.data.iter_mut() {
-        *v = r.normal() as f32;
-    }
+    fill_normal(&mut f, seed);
     f
+}
+
+/// Every value of the grid drawn from a normal, vertex by vertex and channel by channel (the
+/// draws do not depend on how the grid lays out its channels).
+fn fill_normal(f: &mut Field, seed: u64) {
+    let mut r = Rng::new(seed);
+    let ch = f.grid.channels;
+    for v in 0..f.grid.num_vertices() {
+        for c in 0..ch {
+            f.grid.data[super::super::grid::value_index(v, c, ch)] = r.normal() as f32;
+        }
+    }
 }
 
 /// Loss used by the gradient check: a fixed linear functional of (rgb, alpha, depth).
@@ -74,14 +83,13 @@ fn empty_space_skipping_matches_dense_marching() {
         [41, 41, 41],
     );
     let mut r = Rng::new(5);
-    let ch = f.grid.channels;
     for v in 0..f.grid.num_vertices() {
         let [x, y, z] = f.grid.vertex_coords(v as u32);
         let p = Vec3::new(x as f32, y as f32, z as f32) / 20.0 - 1.0;
         let inside = (p - Vec3::new(0.2, -0.1, 0.0)).length() < 0.4;
-        f.grid.data[v * ch] = if inside { 2.0 + r.f32() } else { -40.0 };
-        for j in 1..ch {
-            f.grid.data[v * ch + j] = r.normal() as f32;
+        *f.grid.density_mut(v) = if inside { 2.0 + r.f32() } else { -40.0 };
+        for x in f.grid.colour_mut(v) {
+            *x = r.normal() as f32;
         }
     }
     let dense = f.clone();
@@ -134,8 +142,7 @@ fn gradients_match_finite_differences() {
             let mut f = random_field(6, 0);
             f.config.sh_degree = if degree == 3 { 1 } else { 3 };
             let mut f = f.with_colour_net(5, [6, hidden2], reflect, 2);
-            let mut r = Rng::new(8);
-            f.grid.data.iter_mut().for_each(|v| *v = r.normal() as f32);
+            fill_normal(&mut f, 8);
             f
         };
         let opt = RenderOptions {
@@ -201,10 +208,13 @@ fn gradients_match_finite_differences() {
             },
         );
         let mut checked = 0;
+        // A brick's values begin with its vertices' densities (`grid`'s layout).
+        let per = super::super::grid::BRICK_VERTICES;
+        let is_density = |i: usize| i % (per * ch) < per;
         for i in 0..grad.len() {
             // The reflected direction's normal comes from the density, which the backward
             // holds fixed (by design): its densities' numeric gradient holds that term too.
-            if reflect && i % ch == 0 {
+            if reflect && is_density(i) {
                 continue;
             }
             let eps = 1e-2f32;
@@ -220,8 +230,8 @@ fn gradients_match_finite_differences() {
                 let err = (num - ana).abs() / (num.abs().max(ana.abs()).max(1e-2));
                 assert!(
                     err < 2e-2,
-                    "degree {degree}, param {i} (channel {}): numeric {num} vs analytic {ana}",
-                    i % ch
+                    "degree {degree}, param {i} (density: {}): numeric {num} vs analytic {ana}",
+                    is_density(i)
                 );
             }
         }
@@ -256,9 +266,9 @@ fn colour_threshold_follows_the_step() {
     let raw = f.raw_for_alpha(1.05 * NET_MIN_WEIGHT, f.voxel / f.config.base_voxel);
     let mut r = Rng::new(4);
     let features: Vec<f32> = (1..ch).map(|_| r.normal() as f32).collect();
-    for v in f.grid.data.chunks_mut(ch) {
-        v[0] = raw;
-        v[1..].copy_from_slice(&features);
+    for v in 0..f.grid.num_vertices() {
+        *f.grid.density_mut(v) = raw;
+        f.grid.colour_mut(v).copy_from_slice(&features);
     }
     let (o, d) = (Vec3::new(-2.0, 0.1, 0.05), Vec3::X);
     let render = |step: f32| {

@@ -15,7 +15,7 @@ mod step;
 pub use config::{StepStats, TrainConfig, AUTO_RAY_RUN};
 
 use super::colour_net::NetAdam;
-use super::grid::{compact_buffer, BRICK_VERTICES, NONE};
+use super::grid::{compact_buffer, value_index, BRICK_VERTICES, NONE};
 use super::model::Field;
 use super::rays::RaySet;
 use super::render::forward;
@@ -536,10 +536,11 @@ impl Trainer {
                                     continue;
                                 }
                                 let n = n as usize;
-                                let g = &mut gslab[(v - v0) * ch..(v - v0 + 1) * ch];
-                                for (j, gj) in g.iter_mut().enumerate() {
+                                for j in 0..ch {
                                     let w = if j == 0 { cfg.tv_density } else { cfg.tv_color };
-                                    *gj += w * 2.0 * (params[v * ch + j] - params[n * ch + j]);
+                                    let diff = params[value_index(v, j, ch)]
+                                        - params[value_index(n, j, ch)];
+                                    gslab[value_index(v - v0, j, ch)] += w * 2.0 * diff;
                                 }
                             }
                         }

@@ -2,27 +2,12 @@
 //! slab in chunk order, with the lines it will touch prefetched) and the sparse Adam update of the
 //! touched vertices.
 
-use super::super::grid::{Corners, Grid, NONE};
+use super::super::grid::{colour_index, density_index, Corners, Grid, NONE};
 use crate::util::bf16::{from_bf16, to_bf16};
+use crate::util::mem::prefetch;
 
 /// How many listed vertices ahead [`AdamStep::apply`] prefetches.
 pub(super) const PREFETCH_AHEAD: usize = 8;
-
-/// Ask for the cache line holding `buf[i]` (a hint: no effect on results; nothing off x86-64).
-#[inline(always)]
-pub(super) fn prefetch<T>(buf: &[T], i: usize) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(x) = buf.get(i) {
-        // SAFETY: a prefetch hint reads nothing and cannot fault; the pointer is in bounds.
-        unsafe {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                (x as *const T).cast(),
-            )
-        };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (buf, i);
-}
 
 /// One Adam step's constants (bias corrections and the decayed learning rates).
 #[derive(Clone, Copy)]
@@ -54,41 +39,41 @@ impl AdamStep {
         // run as one branch-free loop the compiler vectorises.
         let rate = self.lr.map(|l| l * self.c2 / self.c1);
         let eps = 1e-8 * self.c2;
+        let n = ch - 1;
         for (k, &vtx) in list.iter().enumerate() {
             // The list ascends with irregular gaps, which the hardware prefetcher does not
             // follow: fetch the values a few vertices ahead.
             if let Some(&ahead) = list.get(k + PREFETCH_AHEAD) {
-                let o = (ahead as usize - v0) * ch;
+                let a = ahead as usize - v0;
+                let (d, c) = (density_index(a, ch), colour_index(a, ch));
                 for buf in [&*p, &*g] {
-                    prefetch(buf, o);
-                    prefetch(buf, o + ch - 1);
+                    prefetch(buf, d);
+                    prefetch(buf, c);
+                    prefetch(buf, c + n - 1);
                 }
                 for buf in [&*m, &*v] {
-                    prefetch(buf, o);
-                    prefetch(buf, o + ch - 1);
+                    prefetch(buf, d);
+                    prefetch(buf, c);
+                    prefetch(buf, c + n - 1);
                 }
             }
-            let o = (vtx as usize - v0) * ch;
-            let r = o..o + ch;
-            let (p, g, m, v) = (
+            let local = vtx as usize - v0;
+            let d = density_index(local, ch);
+            self.update(
+                &mut p[d..d + 1],
+                &mut g[d..d + 1],
+                &mut m[d..d + 1],
+                &mut v[d..d + 1],
+                rate[0],
+                eps,
+            );
+            let c = colour_index(local, ch);
+            let r = c..c + n;
+            self.update(
                 &mut p[r.clone()],
                 &mut g[r.clone()],
                 &mut m[r.clone()],
                 &mut v[r],
-            );
-            self.update(
-                &mut p[..1],
-                &mut g[..1],
-                &mut m[..1],
-                &mut v[..1],
-                rate[0],
-                eps,
-            );
-            self.update(
-                &mut p[1..],
-                &mut g[1..],
-                &mut m[1..],
-                &mut v[1..],
                 rate[1],
                 eps,
             );
@@ -144,12 +129,15 @@ impl SlabScatter<'_> {
     /// scattered over the slab and the sum was bound by cache misses, like the optimiser's pass.
     fn prefetch(&self, grad: &[f32], k: &Corners) {
         let ch = self.grid.channels;
-        // Corners come in x-adjacent pairs (000/100, 010/110, ...): two lines cover each pair.
+        // Corners come in x-adjacent pairs (000/100, 010/110, ...): two lines cover each
+        // pair's colour, one its densities.
         for &v in k.idx.iter().step_by(2) {
             if self.range.contains(&(v as usize)) {
-                let o = (v as usize - self.range.start) * ch;
+                let local = v as usize - self.range.start;
+                let o = colour_index(local, ch);
+                prefetch(grad, density_index(local, ch));
                 prefetch(grad, o);
-                prefetch(grad, o + 2 * ch - 1);
+                prefetch(grad, o + 2 * ch - 3);
             }
         }
     }
@@ -191,8 +179,9 @@ impl SlabScatter<'_> {
                     stamp[local] = self.stamp_id;
                     list.push(vtx as u32);
                 }
-                let dst = &mut grad[local * ch..(local + 1) * ch];
-                for (d, s) in dst.iter_mut().zip(g) {
+                grad[density_index(local, ch)] += w * g[0];
+                let o = colour_index(local, ch);
+                for (d, s) in grad[o..o + ch - 1].iter_mut().zip(&g[1..]) {
                     *d += w * s;
                 }
             }
