@@ -22,7 +22,9 @@
 //!   sample reads its density, few read their colour, so a cell's 8 densities lie in two cache
 //!   lines and a vertex's colour is one run for the gather and the scatter. With the next
 //!   sample's cell prefetched and alpha from one exp, lego 800^2's finest stage takes 8.5% more
-//!   steps a second (examples/results/field.md, "A cheaper sample").
+//!   steps a second on the large model (13 channels), ~2% on the usual one (9), where the
+//!   scatter and Adam now touching two places a vertex cost most of what the march gains
+//!   (examples/results/field.md, "A cheaper sample").
 //! - **Colour by view count: a feature grid + small network ([`colour_net`]) for an object
 //!   seen from at least 80 views, SH degree 1 on the grid below that (and for scene fields)**
 //!   (`SetupConfig::net_min_views`). The network (8 features per vertex, 32 hidden units, the
