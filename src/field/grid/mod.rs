@@ -424,9 +424,7 @@ impl Grid {
                         (b[2] as usize * BRICK + l / (BRICK * BRICK)) as f32 * scale[2],
                     ];
                     self.sample(p, &mut v);
-                    brick[density_index(l, ch)] = v[0];
-                    let o = colour_index(l, ch);
-                    brick[o..o + ch - 1].copy_from_slice(&v[1..]);
+                    put_vertex(brick, l, &v);
                 }
             });
         out
@@ -504,6 +502,16 @@ pub fn value_index(v: usize, c: usize, channels: usize) -> usize {
     }
 }
 
+/// Write every channel of slot index `v` (`values`, density first) into a buffer laid out like
+/// [`Grid::data`] (or a slice of it that starts at a brick).
+#[inline]
+pub fn put_vertex(buf: &mut [f32], v: usize, values: &[f32]) {
+    let ch = values.len();
+    buf[density_index(v, ch)] = values[0];
+    let o = colour_index(v, ch);
+    buf[o..o + ch - 1].copy_from_slice(&values[1..]);
+}
+
 /// One brick's values with every vertex holding `fill`, laid out as [`Grid::data`].
 fn brick_of(fill: &[f32]) -> Vec<f32> {
     let mut out = vec![fill[0]; BRICK_VERTICES];
@@ -517,9 +525,7 @@ pub fn from_interleaved(buf: &mut [f32], channels: usize) {
     let mut scratch = vec![0f32; BRICK_VERTICES * channels];
     for brick in buf.chunks_exact_mut(BRICK_VERTICES * channels) {
         for (l, v) in brick.chunks_exact(channels).enumerate() {
-            scratch[density_index(l, channels)] = v[0];
-            let o = colour_index(l, channels);
-            scratch[o..o + channels - 1].copy_from_slice(&v[1..]);
+            put_vertex(&mut scratch, l, v);
         }
         brick.copy_from_slice(&scratch);
     }

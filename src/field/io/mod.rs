@@ -25,7 +25,7 @@
 //! array ends, so a truncated or corrupted file is an error that says what is wrong.
 
 use super::colour_net::{ColourNet, MAX_HIDDEN, MAX_INPUTS};
-use super::grid::{from_interleaved, Grid, BRICK_VERTICES};
+use super::grid::{from_interleaved, put_vertex, Grid, BRICK_VERTICES};
 use super::model::{Field, FieldConfig};
 use super::sh::sh_coeffs;
 use super::space::Space;
@@ -472,11 +472,7 @@ fn dense_field(
             for x in 0..nx {
                 let v = field.grid.vertex_slot(x, y, z) as usize;
                 let src = (x + nx * (y + ny * z)) * ch;
-                *field.grid.density_mut(v) = dense[src];
-                field
-                    .grid
-                    .colour_mut(v)
-                    .copy_from_slice(&dense[src + 1..src + ch]);
+                put_vertex(&mut field.grid.data, v, &dense[src..src + ch]);
             }
         }
     }
