@@ -22,8 +22,9 @@
 //! less opaque than this a step are pruned), FIELD_DIST (distortion loss weight, distances in
 //! finest voxels); FIELD_LR, FIELD_LR_FINAL, FIELD_SEED, FIELD_RUN, FIELD_BATCH, FIELD_BETAS
 //! ("beta1,beta2": Adam's), FIELD_NET_REFLECT (1: the network also takes the reflected view
-//! direction), FIELD_NET_HIDDEN2 (units of a second hidden layer), FIELD_SPARSE,
-//! FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
+//! direction), FIELD_NET_HIDDEN2 (units of a second hidden layer at any view size; 0: one
+//! layer), FIELD_VIEW_JITTER (degrees a training ray's view direction is turned by at random),
+//! FIELD_SPARSE, FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -73,6 +74,9 @@ fn optimiser_overrides(cfg: &mut TrainConfig) {
     if let Some(v) = env("FIELD_DIST") {
         cfg.distortion_weight = v;
     }
+    if let Some(v) = env::<f32>("FIELD_VIEW_JITTER") {
+        cfg.view_jitter = v.to_radians();
+    }
     if let Some((from, every)) = pair("FIELD_AVERAGE") {
         (cfg.average_from, cfg.average_from_network) = (from, from);
         cfg.average_every = every as usize;
@@ -101,7 +105,8 @@ fn net_overrides(setup: &mut SetupConfig, cfg: &mut TrainConfig) {
         setup.net_reflect = v != 0;
     }
     if let Some(v) = env("FIELD_NET_HIDDEN2") {
-        setup.net_hidden2 = v;
+        // At any view size.
+        (setup.net_hidden2, setup.net_hidden2_min_view_pixels) = (v, 0);
     }
 }
 

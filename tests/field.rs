@@ -158,6 +158,7 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
     let reflect = SetupConfig {
         net_reflect: true,
         net_hidden2: 4,
+        net_hidden2_min_view_pixels: 0,
         ..net_setup()
     };
     let r = train_with(&views, &reflect, small_cfg(5), 5);

@@ -34,9 +34,19 @@ pub struct SetupConfig {
     /// 34.39 dB with it, within three default runs' 34.35-34.58, in 11% fewer steps
     /// (examples/results/field.md, "Two inputs for the view-dependent colour").
     pub net_reflect: bool,
-    /// Units of a colour network's second hidden layer (0: one layer). None by default: 32
-    /// units scored lego 800^2 in 20 min at 34.53 dB, also within them (the same section).
+    /// Units of a colour network's second hidden layer (0: one layer; DVGO's has two). Lego
+    /// 800^2 in 20 min with 32: 34.53 dB before the mean of the last parameters (default runs
+    /// 34.35-34.58), then 34.59 with it (its last parameters 34.48; the default's 34.39-34.47),
+    /// near views 35.50 against 35.16-35.22, in ~9% fewer steps (examples/results/field.md,
+    /// "Two inputs for the view-dependent colour" and "A second hidden layer").
     pub net_hidden2: usize,
+    /// Views of fewer pixels than this keep one hidden layer (`net_hidden2` is not taken).
+    /// The second layer multiplies the network's work a coloured sample by ~4, which is hidden
+    /// where the finest grid is large and each step waits on its memory (lego 800^2: 9% fewer
+    /// steps) but not on a grid that small views make small: lego 200^2 in 60 s took 8 745
+    /// steps against 15 170 and scored 32.99 dB against 33.37 (examples/results/field.md, "A
+    /// second hidden layer by default").
+    pub net_hidden2_min_view_pixels: usize,
     /// An object field trained on fewer views than this takes SH colour whatever
     /// `net_features` says: the network's view dependence needs many views to hold between
     /// them. Lego (100 views) gains 0.5-0.6 dB held out at 400^2 and 800^2 from it; the demo
@@ -58,7 +68,9 @@ pub struct SetupConfig {
     /// 34.05 with the large one; in 60 s (~4.5 passes) the usual 32.40, the large network alone
     /// 31.96 (examples/results/field.md, "A larger model for a longer run").
     pub large_model_passes: f64,
-    pub large_net: (usize, usize),
+    /// The large model's network: features, hidden units and second-layer units (measured
+    /// with one layer; the second was measured on the usual model only).
+    pub large_net: (usize, usize, usize),
     pub large_voxels_per_pixel: f32,
     /// The training time the run has (seconds; None: its step count alone), which the
     /// caller fills in: with the step count, what [`SetupConfig::large_model_passes`] reads.
@@ -133,9 +145,16 @@ impl SetupConfig {
         if s.net_features > 0 {
             // The field's one SH degree is the network's view input from here on.
             s.sh_degree = s.net_sh_degree;
+            if s.net_hidden2 > 0 && pixels / views.max(1) < self.net_hidden2_min_view_pixels {
+                s.net_hidden2 = 0;
+                why += &format!(
+                    "; one hidden layer: views of fewer than {} pixels",
+                    self.net_hidden2_min_view_pixels
+                );
+            }
             let passes = self.passes(pixels, steps, batch);
             if passes >= self.large_model_passes {
-                (s.net_features, s.net_hidden) = self.large_net;
+                (s.net_features, s.net_hidden, s.net_hidden2) = self.large_net;
                 s.voxels_per_pixel = self.large_voxels_per_pixel;
                 why += &format!(
                     "; the large model: ~{passes:.0} passes over the pixels, at least {}",
@@ -195,12 +214,13 @@ impl Default for SetupConfig {
             net_hidden: 32,
             net_sh_degree: 3,
             net_reflect: false,
-            net_hidden2: 0,
+            net_hidden2: 32,
+            net_hidden2_min_view_pixels: 100_000,
             net_min_views: 80,
             fine_min_views: 80,
             voxels_per_pixel: 1.0,
             large_model_passes: 15.0,
-            large_net: (12, 64),
+            large_net: (12, 64, 0),
             large_voxels_per_pixel: 1.3,
             time_budget: None,
             memory_budget: 1 << 30,
@@ -663,9 +683,22 @@ mod tests {
         assert_eq!((long.net_features, long.net_hidden), (12, 64), "{why}");
         assert_eq!(long.voxels_per_pixel, 1.3);
         assert!(why.contains("large model"), "{why}");
-        let (short, _) = with_budget(60.0).for_views(100, PIXELS, uncapped, 2048);
+        let (short, why) = with_budget(60.0).for_views(100, PIXELS, uncapped, 2048);
         assert_eq!((short.net_features, short.net_hidden), (8, 32));
         assert_eq!(short.voxels_per_pixel, 1.0);
+        // Views of 200 x 200 pixels keep one layer; 800 x 800 take the second.
+        assert_eq!(short.net_hidden2, 0, "{why}");
+        assert!(why.contains("one hidden layer"), "{why}");
+        let (large_views, why) = with_budget(1200.0).for_views(100, 16 * PIXELS, uncapped, 2048);
+        assert_eq!(
+            (
+                large_views.net_features,
+                large_views.net_hidden,
+                large_views.net_hidden2
+            ),
+            (8, 32, 32),
+            "{why}"
+        );
         // A step count caps the passes whatever the budget (20 000 steps: ~10 passes).
         let (capped, _) = with_budget(300.0).for_views(100, PIXELS, 20_000, 2048);
         assert_eq!(capped.net_features, 8);

@@ -89,8 +89,26 @@ pub fn forward(
     bg: [f32; 3],
     samples: &mut Vec<Sample>,
 ) -> RayOut {
+    forward_seen_from(f, opt, o, d, d, jitter, bg, samples)
+}
+
+/// [`forward`] with the colour taken as seen along `view_d` (a unit direction) rather than
+/// along the ray: training jitters it ([`TrainConfig::view_jitter`]).
+///
+/// [`TrainConfig::view_jitter`]: super::train::TrainConfig::view_jitter
+#[allow(clippy::too_many_arguments)]
+pub fn forward_seen_from(
+    f: &Field,
+    opt: &RenderOptions,
+    o: Vec3,
+    d: Vec3,
+    view_d: Vec3,
+    jitter: f32,
+    bg: [f32; 3],
+    samples: &mut Vec<Sample>,
+) -> RayOut {
     samples.clear();
-    let mut m = Marcher::new(f, opt, d, samples);
+    let mut m = Marcher::new(f, opt, view_d, samples);
     match f.space.ray_path(o, d, f.box_min, f.box_max) {
         None => {}
         Some(RayPath::Line { o, d, s0, s1, t }) => m.line(o, d, s0, s1, t, jitter),

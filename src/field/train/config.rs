@@ -106,6 +106,9 @@ pub struct TrainConfig {
     /// their gradients balance (examples/results/field.md, "The mean of the last parameters").
     pub average_from_network: f32,
     pub average_every: usize,
+    /// The view direction a training ray's colour is computed for is the ray's, turned by a
+    /// random angle of about this many radians (0: off).
+    pub view_jitter: f32,
     pub render: RenderOptions,
 }
 
@@ -158,6 +161,7 @@ impl Default for TrainConfig {
             average_from: 1.0,
             average_from_network: 0.8,
             average_every: 500,
+            view_jitter: 0.0,
             // Training samples every voxel; rendering and evaluation every half voxel. Measured
             // on lego 200^2 in 90 s: step 1.0 with 2048-ray batches gave 31.2 dB against 28.3 dB
             // at step 0.5 (same batch), since each step costs about half as much.

@@ -3,7 +3,9 @@
 
 use super::super::grid::BRICK;
 use super::super::model::Field;
-use super::super::render::{backward, distortion, forward, free_space, RayGrad, RayOut, Sample};
+use super::super::render::{
+    backward, distortion, forward_seen_from, free_space, RayGrad, RayOut, Sample,
+};
 use super::super::view::{EdgePixel, View};
 use super::config::TrainConfig;
 use crate::util::Rng;
@@ -70,7 +72,9 @@ impl StepContext<'_> {
             if let Some(e) = edge {
                 bg = e.backdrop.map(|c| c as f32 / 255.0);
             }
-            let out = forward(field, &cfg.render, o, d, r.f32(), bg, &mut samples);
+            let jitter = r.f32();
+            let view_d = jittered(d, cfg.view_jitter, &mut r);
+            let out = forward_seen_from(field, &cfg.render, o, d, view_d, jitter, bg, &mut samples);
             nsamp += samples.len();
             let l = self.ray_loss(view, px, bg, edge, &out);
             mse += l.sq_err;
@@ -100,7 +104,7 @@ impl StepContext<'_> {
             backward(
                 field,
                 &cfg.render,
-                d,
+                view_d,
                 bg,
                 &samples,
                 &RayGrad {
@@ -183,5 +187,42 @@ impl StepContext<'_> {
             g_alpha,
             g_depth,
         }
+    }
+}
+
+/// `d` turned by a random angle of about `sigma` radians (each component of the turn drawn
+/// normal): the colour is then learnt as seen from near the camera, not from it alone.
+fn jittered(d: glam::Vec3, sigma: f32, r: &mut Rng) -> glam::Vec3 {
+    if sigma <= 0.0 {
+        return d;
+    }
+    let n = glam::Vec3::new(r.normal() as f32, r.normal() as f32, r.normal() as f32);
+    (d + sigma * n).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jittered_directions_turn_by_about_sigma() {
+        let d = glam::Vec3::new(0.3, -0.5, 0.8).normalize();
+        let mut r = Rng::new(7);
+        assert_eq!(jittered(d, 0.0, &mut r), d);
+        let sigma = 2f32.to_radians();
+        let n = 4000;
+        let mut mean = 0.0;
+        for _ in 0..n {
+            let j = jittered(d, sigma, &mut r);
+            assert!((j.length() - 1.0).abs() < 1e-5);
+            mean += j.dot(d).clamp(-1.0, 1.0).acos() / n as f32;
+        }
+        // The turn is the draw's part across d, a 2-D normal: its mean length is
+        // sigma * sqrt(pi / 2).
+        let expect = sigma * (std::f32::consts::PI / 2.0).sqrt();
+        assert!(
+            (mean - expect).abs() < 0.05 * expect,
+            "{mean} against {expect}"
+        );
     }
 }
