@@ -20,7 +20,9 @@
 //! lego at 200^2 (60 and 300 s) and on the demo objects (3000 steps, held-out PSNR). Writes
 //! `OUT/field_colours.{json,svg}`; `--colours --replot` redraws the SVG.
 
-use objnerf::util::chart::{layers, series, svg, ChartResult, Panel, SeriesLabelPosition};
+use objnerf::util::chart::{
+    layers, palette, series, svg, ChartResult, Layer, Panel, SeriesLabelPosition,
+};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -52,6 +54,8 @@ const COLOURS: &[(&str, u32, &str, f32, &[f64])] = &[
     ("net 8x32", 1, "8,32", 1.0, &[60.0, 300.0]),
     ("net 8x32, 1.3 voxel/px", 1, "8,32", 1.3, &[300.0]),
 ];
+/// Between a run's kind and its size in a series' name (`sizes_chart`).
+const SIZE_SEP: &str = " @ ";
 const DEMO_OBJECTS: &[&str] = &["mug", "sphere", "box", "torus"];
 const DEMO_BUDGETS: &[f64] = &[40.0];
 
@@ -314,12 +318,34 @@ fn sizes(args: &[String], lego: &Path, out_dir: &Path, quick: bool) {
 fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
     let empty = Vec::new();
     let runs = result["runs"].as_array().unwrap_or(&empty);
+    // One series a run kind and size (a line joins one size's budgets), one colour and one
+    // legend entry a run kind: the sizes sit at their own budgets (200^2 at 60 and 300 s,
+    // 400^2 at 300 s, 800^2 at 1200 s).
     let name = |r: &Value| {
         format!(
-            "{} {}",
+            "{}{SIZE_SEP}{}",
             r["grid"].as_str().unwrap_or("?"),
             r["label"].as_str().unwrap_or("?")
         )
+    };
+    let layers = |named: Vec<(String, Vec<(f64, f64)>)>| {
+        let mut kinds: Vec<String> = Vec::new();
+        named
+            .into_iter()
+            .map(|(n, points)| {
+                let kind = n.split(SIZE_SEP).next().unwrap_or("?").to_string();
+                let first = !kinds.contains(&kind);
+                if first {
+                    kinds.push(kind.clone());
+                }
+                let i = kinds.iter().position(|k| *k == kind).unwrap_or(0);
+                let mut layer = Layer::new(kind, palette(i), points);
+                if !first {
+                    layer.name = None;
+                }
+                layer
+            })
+            .collect::<Vec<_>>()
     };
     let budget = |r: &Value| r["train"]["seconds"].as_f64();
     // Where the time goes: the share of training in the gradient scatter and Adam (phase 1),
@@ -335,7 +361,7 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
     });
     let panels = [
         Panel::fitted(
-            "lego: test PSNR vs training time",
+            "test PSNR: 200^2 at 60/300 s, 400^2 300 s, 800^2 1200 s",
             "training wall seconds (2 cores)",
             "test PSNR on white (dB)",
             layers(psnr),
@@ -356,7 +382,11 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
     // The legend (one entry a run kind, ~15 px each) fills a corner: the chart is made tall
     // enough for it and ~220 px of points, and each y axis is extended away from the points
     // so the legend does not cover them.
-    let entries = panels.iter().map(|p| p.layers.len()).max().unwrap_or(0) as f64;
+    let entries = panels
+        .iter()
+        .map(|p| p.layers.iter().filter(|l| l.name.is_some()).count())
+        .max()
+        .unwrap_or(0) as f64;
     let legend_px = 15.0 * entries + 20.0;
     let plot_px = legend_px + 220.0;
     let height = (plot_px + 85.0) as u32;
