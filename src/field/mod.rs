@@ -27,15 +27,19 @@
 //!   (examples/results/field.md, "A cheaper sample").
 //! - **Colour by view count: a feature grid + small network ([`colour_net`]) for an object
 //!   seen from at least 80 views, SH degree 1 on the grid below that (and for scene fields)**
-//!   (`SetupConfig::net_min_views`). The network (8 features per vertex, two hidden layers of
-//!   32 units, the view direction as its SH basis to degree 3, colour only where a sample's
-//!   weight reaches 3e-3 at a voxel's step, DVGO's fast_color_thres, scaled with the step; the
-//!   second layer: lego 800^2 in 20 min 34.45 -> 34.65 dB by the one command, "A second hidden
-//!   layer by default") fits lego better with less memory (+0.5 dB at 400^2 in 300 s, +0.6 at 800^2 in 20 min; equal at 200^2), but its
+//!   (`SetupConfig::net_min_views`). The network (8 features per vertex, 32 hidden units, the
+//!   view direction as its SH basis to degree 3, colour only where a sample's weight reaches
+//!   3e-3 at a voxel's step, DVGO's fast_color_thres, scaled with the step) fits lego better with
+//!   less memory (+0.5 dB at 400^2 in 300 s, +0.6 at 800^2 in 20 min; equal at 200^2), but its
 //!   view dependence does not hold between few views: 0.9 dB below SH 1 on the demo's sphere
 //!   (30 views) and 0.24 below on fox (42). Degree 1 beats degree 0 (less view-dependent colour)
 //!   and degree 2 (28 floats per vertex: slower steps, a coarser grid in the memory budget)
-//!   (`examples/results/field.md`, "Colour" and "Colour by view count").
+//!   (`examples/results/field.md`, "Colour" and "Colour by view count"). On views of 100 000
+//!   pixels or more a second hidden layer of 32 follows the first (`SetupConfig::net_hidden2`):
+//!   its ~4x the network's work a sample hides behind a large grid's memory traffic (lego 800^2
+//!   in 20 min 34.45 -> 34.65 dB by the one command, 400^2 in 300 s 34.11 -> 34.31) but not on
+//!   small views (200^2 in 60 s 33.37 -> 32.99, so they keep one layer; "A second hidden
+//!   layer by default").
 //! - **A larger model for a longer run** (`SetupConfig::large_model_passes`): where the run's
 //!   steps or time budget afford ~15 passes over the training pixels, a network field takes 12
 //!   features and 64 hidden units on a grid 1.3x finer: lego 200^2 in 300 s 33.65 -> 34.05 dB;

@@ -38,7 +38,7 @@ pub struct SetupConfig {
     /// 800^2 in 20 min with 32: 34.53 dB before the mean of the last parameters (default runs
     /// 34.35-34.58), then 34.59 with it (its last parameters 34.48; the default's 34.39-34.47),
     /// near views 35.50 against 35.16-35.22, in ~9% fewer steps (examples/results/field.md,
-    /// "Two inputs for the view-dependent colour" and "A second hidden layer").
+    /// "Two inputs for the view-dependent colour" and "A second hidden layer by default").
     pub net_hidden2: usize,
     /// Views of fewer pixels than this keep one hidden layer (`net_hidden2` is not taken).
     /// The second layer multiplies the network's work a coloured sample by ~4, which is hidden
@@ -145,13 +145,6 @@ impl SetupConfig {
         if s.net_features > 0 {
             // The field's one SH degree is the network's view input from here on.
             s.sh_degree = s.net_sh_degree;
-            if s.net_hidden2 > 0 && pixels / views.max(1) < self.net_hidden2_min_view_pixels {
-                s.net_hidden2 = 0;
-                why += &format!(
-                    "; one hidden layer: views of fewer than {} pixels",
-                    self.net_hidden2_min_view_pixels
-                );
-            }
             let passes = self.passes(pixels, steps, batch);
             if passes >= self.large_model_passes {
                 (s.net_features, s.net_hidden, s.net_hidden2) = self.large_net;
@@ -159,6 +152,13 @@ impl SetupConfig {
                 why += &format!(
                     "; the large model: ~{passes:.0} passes over the pixels, at least {}",
                     self.large_model_passes
+                );
+            } else if s.net_hidden2 > 0 && pixels / views.max(1) < self.net_hidden2_min_view_pixels
+            {
+                s.net_hidden2 = 0;
+                why += &format!(
+                    "; one hidden layer: views of fewer than {} pixels",
+                    self.net_hidden2_min_view_pixels
                 );
             }
         }
@@ -683,6 +683,8 @@ mod tests {
         assert_eq!((long.net_features, long.net_hidden), (12, 64), "{why}");
         assert_eq!(long.voxels_per_pixel, 1.3);
         assert!(why.contains("large model"), "{why}");
+        assert_eq!(long.net_hidden2, 0);
+        assert!(!why.contains("one hidden layer"), "{why}");
         let (short, why) = with_budget(60.0).for_views(100, PIXELS, uncapped, 2048);
         assert_eq!((short.net_features, short.net_hidden), (8, 32));
         assert_eq!(short.voxels_per_pixel, 1.0);

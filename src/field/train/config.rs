@@ -107,7 +107,10 @@ pub struct TrainConfig {
     pub average_from_network: f32,
     pub average_every: usize,
     /// The view direction a training ray's colour is computed for is the ray's, turned by a
-    /// random angle of about this many radians (0: off).
+    /// random angle of about this many radians (0: off): a prior on how fast the colour may
+    /// change with direction between the training views. Off: 2 degrees scored lego 800^2 in
+    /// 20 min at 34.54 dB, within the default's runs (examples/results/field.md, "A second
+    /// hidden layer by default; the view direction jittered").
     pub view_jitter: f32,
     pub render: RenderOptions,
 }
