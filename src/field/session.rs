@@ -36,8 +36,8 @@ pub struct SetupConfig {
     pub net_reflect: bool,
     /// Units of a colour network's second hidden layer (0: one layer; DVGO's has two). Lego
     /// 800^2 in 20 min with 32: 34.53 dB before the mean of the last parameters (default runs
-    /// 34.35-34.58), then 34.59 with it (its last parameters 34.48; the default's 34.39-34.47),
-    /// near views 35.50 against 35.16-35.22, in ~9% fewer steps (examples/results/field.md,
+    /// 34.35-34.58), then 34.59, 34.65 and 34.51 with it (one layer: 34.42-34.52 over four
+    /// runs), the near views gaining most, in ~9% fewer steps (examples/results/field.md,
     /// "Two inputs for the view-dependent colour" and "A second hidden layer by default").
     pub net_hidden2: usize,
     /// Views of fewer pixels than this keep one hidden layer (`net_hidden2` is not taken).
