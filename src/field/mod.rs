@@ -37,7 +37,7 @@
 //!   (`examples/results/field.md`, "Colour" and "Colour by view count"). On views of 100 000
 //!   pixels or more a second hidden layer of 32 follows the first (`SetupConfig::net_hidden2`):
 //!   its ~4x the network's work a sample hides behind a large grid's memory traffic (lego 800^2
-//!   in 20 min: four runs with one layer 34.42-34.52 dB, three with two 34.51-34.65; 400^2 in
+//!   in 20 min: four runs with one layer 34.42-34.52 dB, four with two 34.51-34.65; 400^2 in
 //!   300 s 34.11 -> 34.31) but not on small views (200^2 in 60 s 33.37 -> 32.99, so they keep
 //!   one layer; "A second hidden layer by default").
 //! - **A larger model for a longer run** (`SetupConfig::large_model_passes`): where the run's

@@ -36,7 +36,7 @@ pub struct SetupConfig {
     pub net_reflect: bool,
     /// Units of a colour network's second hidden layer (0: one layer; DVGO's has two). Lego
     /// 800^2 in 20 min with 32: 34.53 dB before the mean of the last parameters (default runs
-    /// 34.35-34.58), then 34.59, 34.65 and 34.51 with it (one layer: 34.42-34.52 over four
+    /// 34.35-34.58), then 34.59, 34.65, 34.51 and 34.61 with it (one layer: 34.42-34.52 over four
     /// runs), the near views gaining most, in ~9% fewer steps (examples/results/field.md,
     /// "Two inputs for the view-dependent colour" and "A second hidden layer by default").
     pub net_hidden2: usize,
