@@ -328,7 +328,7 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
             r["label"].as_str().unwrap_or("?")
         )
     };
-    let layers = |named: Vec<(String, Vec<(f64, f64)>)>| {
+    let kind_layers = |named: Vec<(String, Vec<(f64, f64)>)>| {
         let mut kinds: Vec<String> = Vec::new();
         named
             .into_iter()
@@ -364,19 +364,19 @@ fn sizes_chart(result: &Value, path: &Path) -> ChartResult<()> {
             "test PSNR: 200^2 at 60/300 s, 400^2 300 s, 800^2 1200 s",
             "training wall seconds (2 cores)",
             "test PSNR on white (dB)",
-            layers(psnr),
+            kind_layers(psnr),
         ),
         Panel::fitted(
             "peak RSS of each run",
             "training wall seconds (2 cores)",
             "peak RSS (MiB)",
-            layers(rss),
+            kind_layers(rss),
         ),
         Panel::fitted(
             "where the time goes",
             "training wall seconds (2 cores)",
             "% of training in gradient scatter + Adam",
-            layers(scatter_share),
+            kind_layers(scatter_share),
         ),
     ];
     // The legend (one entry a run kind, ~15 px each) fills a corner: the chart is made tall
