@@ -85,6 +85,10 @@ pub struct PropagationOptions {
     /// Clean every mask before it votes: stray islands and pin-holes (None: SAM's mask as is).
     pub clean: Option<CleanOptions>,
     pub hull: HullOptions,
+    /// Points of D farther from its median than this many times D's median distance to it
+    /// leave D (a mismatched track far off in space; see `propagate::membership`). None keeps
+    /// them.
+    pub max_spread: Option<f64>,
 }
 
 impl Default for PropagationOptions {
@@ -102,6 +106,7 @@ impl Default for PropagationOptions {
             free_space_depth: 0.05,
             clean: Some(CleanOptions::default()),
             hull: HullOptions::default(),
+            max_spread: Some(4.0),
         }
     }
 }
