@@ -207,8 +207,8 @@ fn record(v: &mut ViewResult, m: ViewMask, prompts: Vec<PointPrompt>, order: usi
 /// across two objects (a two-view track from the sphere in one view to the ground beside the
 /// cube in another) triangulates off in space, yet its sphere end votes it in. As a farthest
 /// point it was then picked as a positive prompt in the other view, SAM took the cube, and the
-/// cube's points joined D (the Blender add-on's dataset test: 2 runs in 28 of COLMAP's
-/// unseeded matching, mIoU 0.68-0.69; none in 90 with this filter).
+/// cube's points joined D (the Blender add-on's dataset test: 5 of 90 runs of COLMAP's
+/// unseeded matching, mIoU 0.67-0.69; none of the 90 with this filter).
 fn membership(scene: &Scene, votes: &[Votes], opts: &PropagationOptions) -> Vec<bool> {
     let mut in_d: Vec<bool> = votes
         .iter()
