@@ -152,7 +152,7 @@ def test_objnerf_reads_and_segments_the_dataset(dataset, objnerf_bin, tmp_path):
     # tracks. Over 90 sfm runs of this dataset segmented with one build, 85 scored mIoU
     # 0.955-0.985; in 5 SAM cut the sphere along a shade of its texture in a view that saw a new
     # side, the cut spread over a few views (mIoU 0.842-0.890), and the report warned of it each
-    # time (mask_spill, mask_beyond_points). A silent result below 0.9, or any below 0.8, fails.
+    # time (mask_spill, mask_short, mask_beyond_points). A silent result below 0.9, or any below 0.8, fails.
     assert np.mean(ious) >= 0.9 or (np.mean(ious) >= 0.8 and warnings), warnings
 
 

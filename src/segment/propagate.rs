@@ -147,7 +147,7 @@ pub fn propagate(
     }
 
     let points = members(scene, &votes, opts);
-    classify_views(scene, &points, &mut views, opts);
+    classify_views(scene, &points, &votes, &mut views, opts);
     Ok(ObjectSegmentation {
         name: prompt.name.clone(),
         views,
@@ -320,6 +320,7 @@ impl MaskSide {
 fn classify_views(
     scene: &Scene,
     points: &[usize],
+    votes: &[Votes],
     views: &mut [ViewResult],
     opts: &PropagationOptions,
 ) {
@@ -340,6 +341,7 @@ fn classify_views(
         }
         let Some(mask) = &res.mask else { continue };
         res.spill = spill(scene, v, mask, &in_d, opts.edge_margin_px);
+        res.shortfall = shortfall(scene, v, mask, votes, opts.edge_margin_px);
         let area = mask::area(mask);
         if (area as f64) < opts.tiny_fraction * (mask.width() * mask.height()) as f64 {
             res.flags.push("tiny");
@@ -378,6 +380,36 @@ fn spill(scene: &Scene, view: usize, mask: &GrayImage, in_d: &[bool], margin: f6
         out += (!in_d[p]) as usize;
     }
     (inside >= MIN_SPILL_FEATURES).then(|| out as f64 / inside as f64)
+}
+
+/// Of the view's tracked features, those at least `margin` outside the mask whose 3D point some
+/// view voted in, per feature at least `margin` inside. A mask that stops short of the object
+/// (SAM cut the Blender test's sphere along a shade of its texture) leaves out points that the
+/// views seeing that side whole voted in. None with fewer than [`MIN_SPILL_FEATURES`] inside.
+fn shortfall(
+    scene: &Scene,
+    view: usize,
+    mask: &GrayImage,
+    votes: &[Votes],
+    margin: f64,
+) -> Option<f64> {
+    let sd = signed_distance(mask);
+    let (w, h) = (mask.width() as i64, mask.height() as i64);
+    let (mut inside, mut short) = (0usize, 0usize);
+    for f in &scene.images[view].features {
+        let Some(p) = f.point else { continue };
+        let (x, y) = (f.xy.x.floor() as i64, f.xy.y.floor() as i64);
+        if x < 0 || y < 0 || x >= w || y >= h {
+            continue;
+        }
+        let d = sd[(y * w + x) as usize] as f64;
+        if d >= margin {
+            inside += 1;
+        } else if d <= -margin && votes[p].inside >= votes[p].outside.max(1) {
+            short += 1;
+        }
+    }
+    (inside >= MIN_SPILL_FEATURES).then(|| short as f64 / inside as f64)
 }
 
 /// Several objects in one pass: Algorithm 1 for each (the segmenter's embedding cache makes every
