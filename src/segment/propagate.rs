@@ -382,10 +382,12 @@ fn spill(scene: &Scene, view: usize, mask: &GrayImage, in_d: &[bool], margin: f6
     (inside >= MIN_SPILL_FEATURES).then(|| out as f64 / inside as f64)
 }
 
-/// Of the view's tracked features, those at least `margin` outside the mask whose 3D point some
-/// view voted in, per feature at least `margin` inside. A mask that stops short of the object
-/// (SAM cut the Blender test's sphere along a shade of its texture) leaves out points that the
-/// views seeing that side whole voted in. None with fewer than [`MIN_SPILL_FEATURES`] inside.
+/// Of the view's tracked features, those at least `margin` outside the mask whose 3D point was
+/// voted in by at least as many views as voted it out, per feature at least `margin` inside. A
+/// mask that stops short of the object (SAM cut the Blender test's sphere along a shade of its
+/// texture) leaves out points that the views seeing that side whole voted in. Counting points
+/// any view voted in flagged every view of fox, whose few spilled close-ups vote wallpaper in.
+/// None with fewer than [`MIN_SPILL_FEATURES`] inside.
 fn shortfall(
     scene: &Scene,
     view: usize,

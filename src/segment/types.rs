@@ -157,10 +157,10 @@ pub struct ViewResult {
     /// saw outside the object: the mask spilled onto something else (None: too few features
     /// inside to say, see `segment::checks`).
     pub spill: Option<f64>,
-    /// Tracked features well outside the mask whose 3D points another view saw well inside it,
-    /// per tracked feature well inside: the mask fell short of the object (None: too few
-    /// features inside to say). The other side of a disagreement that `spill` sees from the
-    /// mask that took more.
+    /// Tracked features well outside the mask whose 3D points at least as many views saw inside
+    /// the object as outside, per tracked feature well inside: the mask fell short of the
+    /// object (None: too few features inside to say). The other side of a disagreement that
+    /// `spill` sees from the mask that took more.
     pub shortfall: Option<f64>,
     /// "cut" (the object runs off the frame), "tiny" (mask under `tiny_fraction` of the image).
     pub flags: Vec<&'static str>,
