@@ -316,7 +316,7 @@ impl MaskSide {
 }
 
 /// Compare every mask with the expected mask of D's projection; mark obstructed, cut and tiny
-/// views; measure each mask's spill (see [`spill`]).
+/// views; measure each mask's spill and shortfall (see [`disagreement`]).
 fn classify_views(
     scene: &Scene,
     points: &[usize],
@@ -340,8 +340,8 @@ fn classify_views(
             res.flags.push("cut");
         }
         let Some(mask) = &res.mask else { continue };
-        res.spill = spill(scene, v, mask, &in_d, opts.edge_margin_px);
-        res.shortfall = shortfall(scene, v, mask, votes, opts.edge_margin_px);
+        (res.spill, res.shortfall) =
+            disagreement(scene, v, mask, &in_d, votes, opts.edge_margin_px);
         let area = mask::area(mask);
         if (area as f64) < opts.tiny_fraction * (mask.width() * mask.height()) as f64 {
             res.flags.push("tiny");
@@ -362,42 +362,30 @@ fn classify_views(
 /// cannot tell a spill from a feature near an edge.
 pub const MIN_SPILL_FEATURES: usize = 8;
 
-/// Of the view's tracked features at least `margin` inside the mask, the fraction whose 3D point
-/// is not in D. Each of them voted "in" from this view, so it left D because another view saw
-/// it clearly outside the object: this mask covers something the others do not (a planter
-/// under a plant). None with fewer than [`MIN_SPILL_FEATURES`] such features.
-fn spill(scene: &Scene, view: usize, mask: &GrayImage, in_d: &[bool], margin: f64) -> Option<f64> {
-    let sd = signed_distance(mask);
-    let (w, h) = (mask.width() as i64, mask.height() as i64);
-    let (mut inside, mut out) = (0usize, 0usize);
-    for f in &scene.images[view].features {
-        let Some(p) = f.point else { continue };
-        let (x, y) = (f.xy.x.floor() as i64, f.xy.y.floor() as i64);
-        if x < 0 || y < 0 || x >= w || y >= h || (sd[(y * w + x) as usize] as f64) < margin {
-            continue;
-        }
-        inside += 1;
-        out += (!in_d[p]) as usize;
-    }
-    (inside >= MIN_SPILL_FEATURES).then(|| out as f64 / inside as f64)
-}
-
-/// Of the view's tracked features, those at least `margin` outside the mask whose 3D point was
-/// voted in by at least as many views as voted it out, per feature at least `margin` inside. A
-/// mask that stops short of the object (SAM cut the Blender test's sphere along a shade of its
-/// texture) leaves out points that the views seeing that side whole voted in. Counting points
-/// any view voted in flagged every view of fox, whose few spilled close-ups vote wallpaper in.
-/// None with fewer than [`MIN_SPILL_FEATURES`] inside.
-fn shortfall(
+/// How a mask disagrees with the other views, from the view's tracked features at least
+/// `margin` inside and outside it; both figures are per feature inside, None with fewer than
+/// [`MIN_SPILL_FEATURES`] inside.
+///
+/// Spill: the features inside whose 3D point is not in D. Each of them voted "in" from this
+/// view, so it left D because another view saw it clearly outside the object: this mask covers
+/// something the others do not (a planter under a plant).
+///
+/// Shortfall: the features outside whose 3D point was voted in by at least as many views as
+/// voted it out. A mask that stops short of the object (SAM cut the Blender test's sphere along
+/// a shade of its texture) leaves out points that the views seeing that side whole voted in.
+/// Counting points any view voted in flagged every view of fox, whose few spilled close-ups
+/// vote wallpaper in.
+fn disagreement(
     scene: &Scene,
     view: usize,
     mask: &GrayImage,
+    in_d: &[bool],
     votes: &[Votes],
     margin: f64,
-) -> Option<f64> {
+) -> (Option<f64>, Option<f64>) {
     let sd = signed_distance(mask);
     let (w, h) = (mask.width() as i64, mask.height() as i64);
-    let (mut inside, mut short) = (0usize, 0usize);
+    let (mut inside, mut spilled, mut short) = (0usize, 0usize, 0usize);
     for f in &scene.images[view].features {
         let Some(p) = f.point else { continue };
         let (x, y) = (f.xy.x.floor() as i64, f.xy.y.floor() as i64);
@@ -407,11 +395,16 @@ fn shortfall(
         let d = sd[(y * w + x) as usize] as f64;
         if d >= margin {
             inside += 1;
+            spilled += (!in_d[p]) as usize;
         } else if d <= -margin && votes[p].inside >= votes[p].outside.max(1) {
             short += 1;
         }
     }
-    (inside >= MIN_SPILL_FEATURES).then(|| short as f64 / inside as f64)
+    if inside < MIN_SPILL_FEATURES {
+        return (None, None);
+    }
+    let per_inside = |n: usize| Some(n as f64 / inside as f64);
+    (per_inside(spilled), per_inside(short))
 }
 
 /// Several objects in one pass: Algorithm 1 for each (the segmenter's embedding cache makes every
