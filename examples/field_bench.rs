@@ -257,16 +257,17 @@ fn main() -> objnerf::Result<()> {
     let memory_mb = trainer.memory_bytes() as f64 / 1048576.0;
     // The last parameters scored beside their mean, when the run kept one: the same run, so
     // the difference is the averaging's alone.
-    let last = trainer.has_average().then(|| {
-        field::eval::evaluate(
-            &trainer.field,
-            &field::RenderOptions::default(),
-            &test_views,
-        )
-    });
+    // Scored as `objnerf eval` scores (`RenderOptions::for_images`): the last parameters beside
+    // their mean, when the run kept one (the same run, so the difference is the averaging's
+    // alone), and the mean with one ray a pixel too (the figures before 2 x 2 rays were the
+    // default).
+    let images = field::RenderOptions::for_images();
+    let last = trainer
+        .has_average()
+        .then(|| field::eval::evaluate(&trainer.field, &images, &test_views));
     let averaged = trainer.take_average();
-    // Evaluate with the default (finer) sampling whatever the training step was.
-    let ev = field::eval::evaluate(
+    let ev = field::eval::evaluate(&trainer.field, &images, &test_views);
+    let one_ray = field::eval::evaluate(
         &trainer.field,
         &field::RenderOptions::default(),
         &test_views,
@@ -288,6 +289,10 @@ fn main() -> objnerf::Result<()> {
         "memory_mb": memory_mb, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
         "test_views": ev.views,
+        "pixel_samples": images.pixel_samples,
+        "one_ray": serde_json::json!({
+            "test_psnr": one_ray.psnr, "test_ssim": one_ray.ssim, "test_views": one_ray.views,
+        }),
         "averaged_snapshots": averaged,
         "last_params": last.map(|l| serde_json::json!({
             "test_psnr": l.psnr, "test_ssim": l.ssim, "test_views": l.views,

@@ -6,7 +6,7 @@ use objnerf::field::holdout::is_held_out;
 use objnerf::field::io::{self, IDENTITY};
 use objnerf::field::{
     eval::evaluate_model, fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind,
-    FitOptions, MaskSource, SceneFitOptions, SetupConfig, SpaceChoice,
+    FitOptions, MaskSource, SceneFitOptions, SetupConfig, SpaceChoice, IMAGE_PIXEL_SAMPLES,
 };
 use objnerf::render::render_scene_views;
 use objnerf::util::Progress;
@@ -232,13 +232,32 @@ pub struct RenderCmd {
     /// Downscale of the scene's cameras (default: the one the model was trained at).
     #[arg(long)]
     downscale: Option<u32>,
+    #[command(flatten)]
+    pixels: PixelSamples,
+}
+
+/// Antialiasing, for `render` and `eval` alike.
+#[derive(Args)]
+pub struct PixelSamples {
+    /// Each pixel is the mean of N x N rays over its square (1: one ray through its centre;
+    /// N^2 rays take N^2 times the rendering time).
+    #[arg(long = "pixel-samples", value_name = "N", default_value_t = IMAGE_PIXEL_SAMPLES,
+          value_parser = clap::value_parser!(u32).range(1..=8))]
+    n: u32,
 }
 
 impl RenderCmd {
     pub fn run(self) -> Result<()> {
         let model = io::load_field(&self.model)?;
         let scene = Scene::load(&self.scene)?;
-        let n = render_scene_views(&model, &scene, self.downscale, &self.out, &Bars::default())?;
+        let n = render_scene_views(
+            &model,
+            &scene,
+            self.downscale,
+            self.pixels.n,
+            &self.out,
+            &Bars::default(),
+        )?;
         eprintln!("wrote {n} images to {}", self.out.display());
         Ok(())
     }
@@ -258,6 +277,8 @@ pub struct EvalCmd {
     /// Score only the views `train --hold-out-every N` left out.
     #[arg(long, default_value_t = 0)]
     hold_out_every: usize,
+    #[command(flatten)]
+    pixels: PixelSamples,
     #[arg(long)]
     json: bool,
 }
@@ -271,11 +292,19 @@ impl EvalCmd {
             (None, true) => MaskSource::Opaque,
             (None, false) => MaskSource::Alpha,
         };
-        let r = evaluate_model(&model, &scene, &masks, self.downscale, self.hold_out_every)?;
+        let n = self.pixels.n;
+        let r = evaluate_model(
+            &model,
+            &scene,
+            &masks,
+            self.downscale,
+            self.hold_out_every,
+            n,
+        )?;
         if self.json {
             let v = serde_json::json!({
                 "psnr": r.psnr, "ssim": r.ssim, "num_views": r.num_views, "views": r.views,
-                "seconds": r.seconds,
+                "seconds": r.seconds, "pixel_samples": n,
             });
             println!("{v}");
         } else {

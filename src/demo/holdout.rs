@@ -94,7 +94,7 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
         .filter(|v| visible(v) >= run.min_visible)
         .cloned()
         .collect();
-    let ev = evaluate(&trainer.field, &opt, &scored);
+    let ev = evaluate(&trainer.field, &RenderOptions::for_images(), &scored);
     let depth = depth_error(&trainer.field, &opt, &test);
     let diag = (glam::DVec3::from(obj.bbox_max) - glam::DVec3::from(obj.bbox_min)).length();
     Ok(DemoReport {

@@ -24,20 +24,27 @@ pub struct Rendered {
 
 pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3]) -> Rendered {
     let (w, h) = (view.width, view.height);
+    let n = opt.pixel_samples.max(1);
+    let inv = 1.0 / (n * n) as f32;
     let rows: Vec<Vec<(f32, f32, [f32; 3])>> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut scratch = Vec::new();
             (0..w)
                 .map(|x| {
-                    let (o, d) = view.ray(y * w + x);
-                    let r = render_ray(f, opt, o, d, bg, &mut scratch);
-                    let depth = if r.alpha > 1e-3 {
-                        r.depth / r.alpha
-                    } else {
-                        0.0
-                    };
-                    (r.alpha, depth, r.rgb)
+                    let (mut alpha, mut depth, mut rgb) = (0.0, 0.0, [0.0; 3]);
+                    for j in 0..n {
+                        for i in 0..n {
+                            let at = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
+                            let (o, d) = view.ray_through(y * w + x, at);
+                            let r = render_ray(f, opt, o, d, bg, &mut scratch);
+                            alpha += r.alpha * inv;
+                            depth += r.depth * inv;
+                            (0..3).for_each(|c| rgb[c] += r.rgb[c] * inv);
+                        }
+                    }
+                    let depth = if alpha > 1e-3 { depth / alpha } else { 0.0 };
+                    (alpha, depth, rgb)
                 })
                 .collect()
         })
@@ -206,13 +213,15 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
 
 /// Score a model on a scene's views (only those [`is_held_out`] by `held_out_every`, when not
 /// 0), with `masks` as the truth's alpha, at `downscale` (default: the one it was trained at),
-/// rendering with the default sampling (half-voxel steps) however coarsely training sampled.
+/// rendering with the default sampling (half-voxel steps) however coarsely training sampled,
+/// and `pixel_samples` x `pixel_samples` rays a pixel ([`RenderOptions::pixel_samples`]).
 pub fn evaluate_model(
     model: &Model,
     scene: &Scene,
     masks: &MaskSource,
     downscale: Option<u32>,
     held_out_every: usize,
+    pixel_samples: u32,
 ) -> Result<EvalReport> {
     let mut views = load_views(scene, masks, downscale.unwrap_or_else(|| model.downscale()))?;
     if held_out_every > 0 {
@@ -222,7 +231,11 @@ pub fn evaluate_model(
             is_held_out(i - 1, held_out_every)
         });
     }
-    Ok(evaluate(&model.field, &RenderOptions::default(), &views))
+    let opt = RenderOptions {
+        pixel_samples,
+        ..RenderOptions::default()
+    };
+    Ok(evaluate(&model.field, &opt, &views))
 }
 
 #[cfg(test)]
@@ -245,5 +258,65 @@ mod tests {
         assert!(p > 19.0 && p < 21.0, "{p}");
         let s = ssim(&a, &b, w, h);
         assert!(s < 1.0 && s > 0.5, "{s}");
+    }
+
+    /// A pixel rendered with n x n rays is the mean of the rays through those points of its
+    /// square; with one ray, the ray through its centre.
+    #[test]
+    fn a_pixel_is_the_mean_of_its_rays() {
+        use super::super::grid::value_index;
+        use super::super::model::FieldConfig;
+        use crate::scene::{Camera, Pose};
+        use crate::util::Rng;
+        use glam::{DVec3, Vec3};
+        let config = FieldConfig {
+            sh_degree: 1,
+            alpha_init: 0.05,
+            base_voxel: 0.25,
+        };
+        let mut f = Field::new(config, Vec3::splat(-1.0), Vec3::splat(1.0), [6, 7, 6]);
+        let mut r = Rng::new(5);
+        let ch = f.grid.channels;
+        for v in 0..f.grid.num_vertices() {
+            for c in 0..ch {
+                f.grid.data[value_index(v, c, ch)] = 2.0 * r.normal() as f32;
+            }
+        }
+        let camera = Camera::pinhole(12, 10, 9.0, 9.0, 6.0, 5.0);
+        let pose = Pose::look_at(DVec3::new(0.4, -3.0, 0.8), DVec3::ZERO, DVec3::Z);
+        let cam = RayCamera::new("v".into(), camera, pose);
+        let bg = [0.2, 0.6, 0.9];
+        let ray = |idx: u32, at: [f32; 2]| {
+            let (o, d) = cam.ray_through(idx, at);
+            render_ray(&f, &RenderOptions::default(), o, d, bg, &mut Vec::new())
+        };
+        let one = render_view(&f, &RenderOptions::default(), &cam, bg);
+        let four = render_view(
+            &f,
+            &RenderOptions {
+                pixel_samples: 2,
+                ..RenderOptions::default()
+            },
+            &cam,
+            bg,
+        );
+        let mut differs = 0;
+        for idx in 0..120u32 {
+            let i = idx as usize;
+            assert_eq!(one.rgb[i], ray(idx, [0.5, 0.5]).rgb);
+            let outs =
+                [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]].map(|at| ray(idx, at));
+            let alpha: f32 = outs.iter().map(|o| o.alpha).sum::<f32>() / 4.0;
+            assert!((four.alpha[i] - alpha).abs() < 1e-5, "{idx}");
+            for c in 0..3 {
+                let mean: f32 = outs.iter().map(|o| o.rgb[c]).sum::<f32>() / 4.0;
+                assert!((four.rgb[i][c] - mean).abs() < 1e-5, "{idx} {c}");
+            }
+            differs += usize::from((four.rgb[i][0] - one.rgb[i][0]).abs() > 1e-3);
+        }
+        assert!(
+            differs > 10,
+            "the sub-pixel rays see other colours: {differs}"
+        );
     }
 }

@@ -146,7 +146,7 @@ pub use fit::{
 };
 pub use layout::SpaceChoice;
 pub use model::{Field, FieldConfig};
-pub use render::RenderOptions;
+pub use render::{RenderOptions, IMAGE_PIXEL_SAMPLES};
 pub use session::{prepare, run, SetupConfig, StopRule};
 pub use space::Space;
 pub use train::{TrainConfig, Trainer};

@@ -153,17 +153,25 @@ impl RayCamera {
     /// World origin and unit direction of the ray through the centre of pixel `idx` (row-major).
     #[inline]
     pub fn ray(&self, idx: u32) -> (Vec3, Vec3) {
+        self.ray_through(idx, [0.5, 0.5])
+    }
+
+    /// The ray through the point `at` of pixel `idx`, in pixels from its top-left corner
+    /// (`[0.5, 0.5]`: its centre).
+    #[inline]
+    pub fn ray_through(&self, idx: u32, at: [f32; 2]) -> (Vec3, Vec3) {
         let col = idx % self.width;
         let row = idx / self.width;
         let dc = if self.pinhole {
             let [fx, fy, cx, cy] = self.intr;
             Vec3::new(
-                (col as f32 + 0.5 - cx) / fx,
-                (row as f32 + 0.5 - cy) / fy,
+                (col as f32 + at[0] - cx) / fx,
+                (row as f32 + at[1] - cy) / fy,
                 1.0,
             )
         } else {
-            self.camera.pixel_center_ray(col, row).as_vec3()
+            let p = glam::DVec2::new(col as f64 + at[0] as f64, row as f64 + at[1] as f64);
+            self.camera.unproject(p).as_vec3()
         };
         (self.center, (self.rot * dc).normalize())
     }
@@ -330,4 +338,39 @@ pub fn downscale_premultiplied(img: &image::RgbaImage, f: u32) -> (u32, u32, Vec
         }
     }
     (dw, dh, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::CameraModel;
+    use glam::DVec3;
+
+    fn pose() -> Pose {
+        Pose::look_at(DVec3::new(0.3, -2.0, 1.5), DVec3::ZERO, DVec3::Z)
+    }
+
+    /// A point of a pixel, as a ray, projects back to that point: pinhole and distorted models.
+    #[test]
+    fn a_ray_through_a_point_of_a_pixel_projects_back_to_it() {
+        let pinhole = Camera::pinhole(40, 30, 35.0, 36.0, 19.5, 15.2);
+        let radial = Camera::new(
+            CameraModel::SimpleRadial,
+            40,
+            30,
+            vec![35.0, 19.5, 15.2, 0.08],
+        )
+        .expect("a valid camera");
+        for camera in [pinhole, radial] {
+            let cam = RayCamera::new("v".into(), camera, pose());
+            for (idx, at) in [(0u32, [0.5f32, 0.5]), (37, [0.1, 0.9]), (1199, [0.99, 0.0])] {
+                let (o, d) = cam.ray_through(idx, at);
+                let (u, v) = cam.project(o + 2.0 * d).expect("in front");
+                let (col, row) = ((idx % 40) as f32, (idx / 40) as f32);
+                assert!((u - col - at[0]).abs() < 1e-3, "{idx} {at:?}: u {u}");
+                assert!((v - row - at[1]).abs() < 1e-3, "{idx} {at:?}: v {v}");
+            }
+            assert_eq!(cam.ray(37), cam.ray_through(37, [0.5, 0.5]));
+        }
+    }
 }

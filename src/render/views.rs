@@ -12,18 +12,24 @@ use std::path::Path;
 
 /// Render every view of `scene` (downscaled by `downscale`, default: the model's training
 /// downscale): `<stem>.png` (RGB on white), `<stem>_alpha.png` and `<stem>_depth.png` (z-depth,
-/// 16-bit millimetres, 0 = empty) into `out`, which is replaced. Returns the files written.
+/// 16-bit millimetres, 0 = empty) into `out`, which is replaced, each pixel the mean of
+/// `pixel_samples` x `pixel_samples` rays ([`RenderOptions::pixel_samples`]). Returns the files
+/// written.
 pub fn render_scene_views(
     model: &Model,
     scene: &Scene,
     downscale: Option<u32>,
+    pixel_samples: u32,
     out: &Path,
     progress: &dyn Progress,
 ) -> Result<usize> {
     let cams = RayCamera::for_scene(scene, downscale.unwrap_or_else(|| model.downscale()));
     let dir = AtomicDir::new(out, true)?;
     // The default sampling (half-voxel steps), however coarsely training sampled.
-    let opt = RenderOptions::default();
+    let opt = RenderOptions {
+        pixel_samples,
+        ..RenderOptions::default()
+    };
     progress.begin("render", cams.len() as u64);
     for (i, cam) in cams.iter().enumerate() {
         let r = render_view(&model.field, &opt, cam, [1.0; 3]);

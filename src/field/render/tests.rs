@@ -149,6 +149,7 @@ fn gradients_match_finite_differences() {
             step: 0.37,
             alpha_thresh: 0.0,
             term_thresh: 0.0,
+            pixel_samples: 1,
         };
         let o = Vec3::new(-2.0, -0.3, -1.7);
         let d = Vec3::new(1.0, 0.21, 0.83).normalize();
@@ -276,6 +277,7 @@ fn colour_threshold_follows_the_step() {
             step,
             alpha_thresh: 0.0,
             term_thresh: 0.0,
+            pixel_samples: 1,
         };
         let mut samples = Vec::new();
         let out = forward(&f, &opt, o, d, 0.5, [0.0; 3], &mut samples);
