@@ -24,7 +24,9 @@
 //! ("beta1,beta2": Adam's), FIELD_NET_REFLECT (1: the network also takes the reflected view
 //! direction), FIELD_NET_HIDDEN2 (units of a second hidden layer at any view size; 0: one
 //! layer), FIELD_VIEW_JITTER (degrees a training ray's view direction is turned by at random),
-//! FIELD_SPARSE, FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
+//! FIELD_EVAL_PIXELS (n: the JSON's "antialiased" scores the same parameters with each pixel the
+//! mean of n x n rays; `demo` scores with it instead of one ray), FIELD_SPARSE,
+//! FIELD_PRUNE_ALPHA and FIELD_DIST apply to `demo` too.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -145,6 +147,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
                 window: 100,
                 ..Default::default()
             },
+            pixel_samples: env("FIELD_EVAL_PIXELS").unwrap_or(1),
             ..Default::default()
         },
     )?;
@@ -257,21 +260,31 @@ fn main() -> objnerf::Result<()> {
     let memory_mb = trainer.memory_bytes() as f64 / 1048576.0;
     // The last parameters scored beside their mean, when the run kept one: the same run, so
     // the difference is the averaging's alone.
-    // Scored as `objnerf eval` scores (`RenderOptions::for_images`): the last parameters beside
-    // their mean, when the run kept one (the same run, so the difference is the averaging's
-    // alone), and the mean with one ray a pixel too (the figures before 2 x 2 rays were the
-    // default).
-    let images = field::RenderOptions::for_images();
-    let last = trainer
-        .has_average()
-        .then(|| field::eval::evaluate(&trainer.field, &images, &test_views));
+    let last = trainer.has_average().then(|| {
+        field::eval::evaluate(
+            &trainer.field,
+            &field::RenderOptions::default(),
+            &test_views,
+        )
+    });
     let averaged = trainer.take_average();
-    let ev = field::eval::evaluate(&trainer.field, &images, &test_views);
-    let one_ray = field::eval::evaluate(
+    // Evaluate with the default (finer) sampling whatever the training step was.
+    let ev = field::eval::evaluate(
         &trainer.field,
         &field::RenderOptions::default(),
         &test_views,
     );
+    // FIELD_EVAL_PIXELS=n: the same parameters scored again, each pixel the mean of n x n rays.
+    let antialiased = env::<u32>("FIELD_EVAL_PIXELS").map(|n| {
+        let opt = field::RenderOptions {
+            pixel_samples: n,
+            ..field::RenderOptions::default()
+        };
+        let e = field::eval::evaluate(&trainer.field, &opt, &test_views);
+        serde_json::json!({
+            "pixel_samples": n, "test_psnr": e.psnr, "test_ssim": e.ssim, "test_views": e.views,
+        })
+    });
     let commit = bench::git_commit();
     let out = serde_json::json!({
         "command": args.join(" "),
@@ -289,10 +302,7 @@ fn main() -> objnerf::Result<()> {
         "memory_mb": memory_mb, "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "test_psnr": ev.psnr, "test_ssim": ev.ssim, "num_views": ev.num_views, "eval_s": ev.seconds,
         "test_views": ev.views,
-        "pixel_samples": images.pixel_samples,
-        "one_ray": serde_json::json!({
-            "test_psnr": one_ray.psnr, "test_ssim": one_ray.ssim, "test_views": one_ray.views,
-        }),
+        "antialiased": antialiased,
         "averaged_snapshots": averaged,
         "last_params": last.map(|l| serde_json::json!({
             "test_psnr": l.psnr, "test_ssim": l.ssim, "test_views": l.views,

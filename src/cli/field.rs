@@ -6,7 +6,7 @@ use objnerf::field::holdout::is_held_out;
 use objnerf::field::io::{self, IDENTITY};
 use objnerf::field::{
     eval::evaluate_model, fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind,
-    FitOptions, MaskSource, SceneFitOptions, SetupConfig, SpaceChoice, IMAGE_PIXEL_SAMPLES,
+    FitOptions, MaskSource, SceneFitOptions, SetupConfig, SpaceChoice,
 };
 use objnerf::render::render_scene_views;
 use objnerf::util::Progress;
@@ -239,9 +239,9 @@ pub struct RenderCmd {
 /// Antialiasing, for `render` and `eval` alike.
 #[derive(Args)]
 pub struct PixelSamples {
-    /// Each pixel is the mean of N x N rays over its square (1: one ray through its centre;
-    /// N^2 rays take N^2 times the rendering time).
-    #[arg(long = "pixel-samples", value_name = "N", default_value_t = IMAGE_PIXEL_SAMPLES,
+    /// Each pixel is the mean of N x N rays over its square (antialiasing; N^2 times the
+    /// rendering time) rather than one ray through its centre.
+    #[arg(long = "pixel-samples", value_name = "N", default_value_t = 1,
           value_parser = clap::value_parser!(u32).range(1..=8))]
     n: u32,
 }

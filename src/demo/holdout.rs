@@ -25,6 +25,8 @@ pub struct DemoRun {
     /// Held-out views where less than this fraction of the object is visible are not scored on
     /// colour: the field renders the whole object, the truth shows what the occluder leaves.
     pub min_visible: f64,
+    /// Rays a held-out pixel is the mean of, per axis ([`RenderOptions::pixel_samples`]).
+    pub pixel_samples: u32,
 }
 
 impl Default for DemoRun {
@@ -37,6 +39,7 @@ impl Default for DemoRun {
             train: TrainConfig::default(),
             stop: StopRule::default(),
             min_visible: 0.9,
+            pixel_samples: 1,
         }
     }
 }
@@ -83,7 +86,10 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
     let points = crate::field::bounds::points_in_masks(&scene, &train, run.downscale);
     let (mut trainer, rays, setup) = prepare(&train, &points, &run.setup, run.train.clone())?;
     let summary = crate::field::session::run(&mut trainer, &train, &rays, &run.stop, |_| {});
-    let opt = RenderOptions::default();
+    let opt = RenderOptions {
+        pixel_samples: run.pixel_samples,
+        ..RenderOptions::default()
+    };
     let visible = |v: &View| {
         let file = Path::new(&v.name).file_name().map(|f| f.to_string_lossy());
         file.and_then(|f| obj.visible.get(f.as_ref()).copied())
@@ -94,7 +100,7 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
         .filter(|v| visible(v) >= run.min_visible)
         .cloned()
         .collect();
-    let ev = evaluate(&trainer.field, &RenderOptions::for_images(), &scored);
+    let ev = evaluate(&trainer.field, &opt, &scored);
     let depth = depth_error(&trainer.field, &opt, &test);
     let diag = (glam::DVec3::from(obj.bbox_max) - glam::DVec3::from(obj.bbox_min)).length();
     Ok(DemoReport {

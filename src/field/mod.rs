@@ -111,6 +111,11 @@
 //!   voxels nearer than its target is penalised, since a camera sees the point through empty
 //!   space. Colour alone leaves faint matter there; with it the demo objects' held-out PSNR moved
 //!   -0.02 to +1.25 dB and training took 0.55-0.75 of the time (fewer samples a ray).
+//! - **One ray through each pixel's centre** when a view is rendered or scored, though every
+//!   truth here integrates over its pixels: 2 x 2 rays (`RenderOptions::pixel_samples`,
+//!   `--pixel-samples` on `render` and `eval`) score the same lego 800^2 models +0.10 dB, but
+//!   the demo objects' closely fit fields 0.35-0.61 dB less and lego 200^2 0.02-0.14 less
+//!   (examples/results/field.md, "Pixels as the mean of 2 x 2 rays").
 
 pub mod activation;
 pub mod bounds;
@@ -146,7 +151,7 @@ pub use fit::{
 };
 pub use layout::SpaceChoice;
 pub use model::{Field, FieldConfig};
-pub use render::{RenderOptions, IMAGE_PIXEL_SAMPLES};
+pub use render::RenderOptions;
 pub use session::{prepare, run, SetupConfig, StopRule};
 pub use space::Space;
 pub use train::{TrainConfig, Trainer};

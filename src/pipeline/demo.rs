@@ -137,7 +137,7 @@ fn score(
                 && truth.visible.get(&v.name).copied().unwrap_or(0.0) > 0.999
         })
         .collect();
-    let eval = evaluate(&model.field, &RenderOptions::for_images(), &held);
+    let eval = evaluate(&model.field, &RenderOptions::default(), &held);
 
     let true_mesh = crate::mesh::io::read_ply(&scene_dir.join(format!("truth/meshes/{name}.ply")))?;
     let ours = crate::mesh::io::read_ply(&obj.mesh_glb.with_extension("ply"))?;
