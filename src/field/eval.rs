@@ -22,6 +22,8 @@ pub struct Rendered {
     pub depth: Vec<f32>,
 }
 
+/// A whole view over the background `bg`, rows in parallel, each pixel the mean of
+/// `opt.pixel_samples` x `opt.pixel_samples` rays over its square.
 pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3]) -> Rendered {
     let (w, h) = (view.width, view.height);
     let n = opt.pixel_samples.max(1);

@@ -36,11 +36,12 @@ pub struct RenderOptions {
     /// (examples/results/field.md, "Pixels as the mean of 2 x 2 rays").
     ///
     /// [`render_view`]: super::eval::render_view
-    #[serde(default = "one")]
+    #[serde(default = "one_ray")]
     pub pixel_samples: u32,
 }
 
-fn one() -> u32 {
+/// Model files written before `pixel_samples` rendered one ray a pixel.
+fn one_ray() -> u32 {
     1
 }
 
