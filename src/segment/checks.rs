@@ -97,31 +97,27 @@ pub fn check_segmentation(scene: &Scene, obj: &ObjectSegmentation) -> Vec<Warnin
         .iter()
         .filter(|v| v.status == ViewStatus::Ok)
         .collect();
-    let spilled = ok_views_over(&ok, |v| v.spill, MAX_SPILL);
-    if let Some(worst) = spilled.iter().map(|s| s.1).max_by(|a, b| a.total_cmp(b)) {
-        let names: Vec<&str> = spilled.iter().map(|s| s.0).collect();
+    if let Some((names, worst)) = ok_views_over(&ok, |v| v.spill, MAX_SPILL) {
         out.push(warn(
             "mask_spill",
             worst,
             MAX_SPILL,
             format!(
                 "{} ok view(s) have masks holding points that other views see outside the object ({}; worst {:.0}%): the mask spilled onto a neighbour; those views train the field on the wrong pixels",
-                spilled.len(),
+                names.len(),
                 name_list(&names),
                 100.0 * worst
             ),
         ));
     }
-    let short = ok_views_over(&ok, |v| v.shortfall, MAX_SHORTFALL);
-    if let Some(worst) = short.iter().map(|s| s.1).max_by(|a, b| a.total_cmp(b)) {
-        let names: Vec<&str> = short.iter().map(|s| s.0).collect();
+    if let Some((names, worst)) = ok_views_over(&ok, |v| v.shortfall, MAX_SHORTFALL) {
         out.push(warn(
             "mask_short",
             worst,
             MAX_SHORTFALL,
             format!(
                 "{} ok view(s) have masks leaving out points that other views see inside the object ({}; worst {:.0}% of the points they hold): the mask fell short of the object; those views teach the field that part is empty",
-                short.len(),
+                names.len(),
                 name_list(&names),
                 100.0 * worst
             ),
@@ -216,15 +212,19 @@ fn widest_gap(mut a: Vec<f64>) -> f64 {
     a.windows(2).map(|w| w[1] - w[0]).fold(wrap, f64::max)
 }
 
-/// The ok views whose figure exceeds `max`, with that figure.
+/// The names of the ok views whose figure exceeds `max`, and the largest such figure; `None`
+/// when no view exceeds it.
 fn ok_views_over<'a>(
     ok: &[&'a ViewResult],
     figure: impl Fn(&ViewResult) -> Option<f64>,
     max: f64,
-) -> Vec<(&'a str, f64)> {
-    ok.iter()
+) -> Option<(Vec<&'a str>, f64)> {
+    let over: Vec<(&str, f64)> = ok
+        .iter()
         .filter_map(|v| figure(v).filter(|f| *f > max).map(|f| (v.view.as_str(), f)))
-        .collect()
+        .collect();
+    let worst = over.iter().map(|s| s.1).max_by(|a, b| a.total_cmp(b))?;
+    Some((over.into_iter().map(|s| s.0).collect(), worst))
 }
 
 #[cfg(test)]
