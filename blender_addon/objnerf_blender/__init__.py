@@ -5,12 +5,13 @@ a Blender scene as a nerfstudio dataset.
 The add-on is thin over the `objnerf` binary (Preferences > Add-ons > objnerf): the heavy work
 stays in Rust. Module map: `frames` (every convention), `formats` (files), `cli` (the binary),
 `props` (data on objects), `build` (Blender objects), `importer`, `edit`, `camera_path`,
-`render`, `dataset` (operators), `ui` (the sidebar panel).
+`render`, `dataset` (operators), `ui` (the sidebar panel and File > Import), `compat` (what
+differs between Blender 4.5 and 5.x).
 """
 
 import bpy
 
-from . import camera_path, dataset, edit, importer, prefs, props, render, ui
+from . import camera_path, compat, dataset, edit, importer, prefs, props, render, ui
 
 # Registered in this order (property groups first: operators and panels use them).
 _MODULES = (prefs, importer, edit, camera_path, render, dataset, ui)
@@ -22,12 +23,17 @@ def _classes():
 
 
 def register():
+    # An older Blender stops here, with a message naming both versions, before anything is
+    # registered (the extension installer already refuses it by the manifest's minimum).
+    compat.require_supported()
     props.register()
     for c in _classes():
         bpy.utils.register_class(c)
+    ui.register_menus()
 
 
 def unregister():
+    ui.unregister_menus()
     for c in reversed(list(_classes())):
         bpy.utils.unregister_class(c)
     props.unregister()

@@ -12,7 +12,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import formats, frames
+from . import compat, formats, frames
 from .errors import ObjnerfError
 from .props import PIVOT_KEY
 
@@ -99,8 +99,7 @@ def _colour_material(name):
     if mat is not None:
         return mat
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    nt = mat.node_tree
+    nt = compat.material_nodes(mat)
     bsdf = nt.nodes.get("Principled BSDF")
     attr = nt.nodes.new("ShaderNodeAttribute")
     attr.attribute_name = COLOUR_ATTR
@@ -168,7 +167,7 @@ def add_points(name, path, root, collection, radius, transform=None):
     obj["objnerf_ply"] = path
     mod = obj.modifiers.new("objnerf points", "NODES")
     mod.node_group = _points_group()
-    mod[mod.node_group.interface.items_tree["Radius"].identifier] = radius
+    compat.set_modifier_input(mod, "Radius", radius)
     collection.objects.link(obj)
     parent_to(obj, root)
     return obj

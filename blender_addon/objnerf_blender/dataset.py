@@ -1,6 +1,12 @@
 """A Blender scene as a nerfstudio dataset with exact truth (what BlenderNeRF does, in nerfstudio's
-format): `transforms.json`, `images/`, `depth/` (z-depth, EXR in metres, 0 = nothing hit) and
-per-object masks `masks/<object>/` (8-bit, 255 = the object), plus `objects.json`.
+format): `transforms.json`, `images/`, `depth/` (z-depth, 0 = nothing hit) and per-object masks
+`masks/<object>/` (8-bit, 255 = the object), plus `objects.json`.
+
+Depth is 16-bit PNG in millimetres by default: what nerfstudio's depth loader reads without flags
+(it multiplies by `depth_unit_scale_factor`, 1e-3 by default) and what `objnerf export
+nerfstudio` writes. EXR in metres is the option for depth past 65.535 m or below a millimetre;
+nerfstudio then needs `--depth-unit-scale-factor 1`. transforms.json says which:
+`"depth_unit_scale_factor"` (nerfstudio's name: metres = stored value x factor).
 
 Views come from the selected cameras or a generated ring or dome around the renderable
 objects. Each view is rendered twice:
@@ -9,7 +15,7 @@ objects. Each view is rendered twice:
 * a truth pass in Workbench with flat shading, anti-aliasing off and each object painted a
   code colour (`obj.color`), so every pixel holds exactly the object seen at its centre; its
   Z pass, from the same render, is the depth. Both are written by a temporary compositor File
-  Output node as float EXR and decoded here.
+  Output node as float EXR (depth in metres) and decoded here.
 
 Camera matrices are `matrix_world` without scale (OpenGL axes, as nerfstudio's); intrinsics are
 computed from lens, sensor size and fit, shift, pixel aspect and resolution as Blender's view plane
@@ -29,13 +35,16 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from mathutils import Vector
 
-from . import formats, frames
+from . import compat, formats, frames
 from .errors import ObjnerfError, reports_errors
 
 RENDERABLE = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
 CODE_BASE = 8  # object code colours: (i + 1) in base 8 over R, G, B, levels k / 7 (511 objects)
 NODE_NAME = "objnerf dataset truth"
 CAMERA_COLLECTION = "objnerf dataset cameras"
+# Metres per stored depth value, per depth format (nerfstudio's depth_unit_scale_factor).
+DEPTH_UNIT_SCALE = {"PNG": 1e-3, "EXR": 1.0}
+PNG_DEPTH_MAX_MM = 65535
 
 
 def _hidden_collections(scene):
@@ -136,36 +145,28 @@ class _Saved:
             setattr(obj, attr, value)
 
 
-def _truth_nodes(scene, tmp):
+def _truth_nodes(nt, scene, tmp):
     """A File Output node writing the truth pass (RGBA EXR) and the depth (one channel EXR in
-    metres, 0 where nothing was hit)."""
-    nt = scene.node_tree
+    metres, 0 where nothing was hit); returns the nodes, the File Output node second."""
     layers = nt.nodes.new("CompositorNodeRLayers")
     layers.name = NODE_NAME + " layers"
     layers.scene = scene
-    out = nt.nodes.new("CompositorNodeOutputFile")
+    out, (id_in, depth_in) = compat.file_output_exr(nt, tmp, [("id_", "RGBA"), ("depth_", "BW")])
     out.name = NODE_NAME
-    out.base_path = tmp
-    out.format.file_format, out.format.color_depth, out.format.color_mode = "OPEN_EXR", "32", "RGBA"
-    out.file_slots[0].path = "id_"
-    out.file_slots.new("depth_")  # returns the node's new input socket, not the slot
-    slot = out.file_slots[1]
-    slot.use_node_format = False
-    slot.format.file_format, slot.format.color_depth, slot.format.color_mode = "OPEN_EXR", "32", "BW"
-    hit = nt.nodes.new("CompositorNodeMath")
+    hit = nt.nodes.new(compat.MATH_NODE)
     hit.name, hit.operation = NODE_NAME + " hit", "LESS_THAN"
     hit.inputs[1].default_value = 1e9  # Blender's Z is 1e10 where nothing was hit
-    metres = nt.nodes.new("CompositorNodeMath")
+    metres = nt.nodes.new(compat.MATH_NODE)
     metres.name, metres.operation = NODE_NAME + " metres", "MULTIPLY"
     metres.inputs[1].default_value = scene.unit_settings.scale_length
-    masked = nt.nodes.new("CompositorNodeMath")
+    masked = nt.nodes.new(compat.MATH_NODE)
     masked.name, masked.operation = NODE_NAME + " masked", "MULTIPLY"
-    nt.links.new(layers.outputs["Image"], out.inputs[0])
+    nt.links.new(layers.outputs["Image"], id_in)
     nt.links.new(layers.outputs["Depth"], hit.inputs[0])
     nt.links.new(layers.outputs["Depth"], metres.inputs[0])
     nt.links.new(metres.outputs[0], masked.inputs[0])
     nt.links.new(hit.outputs[0], masked.inputs[1])
-    nt.links.new(masked.outputs[0], out.inputs[1])
+    nt.links.new(masked.outputs[0], depth_in)
     return [layers, out, hit, metres, masked]
 
 
@@ -191,9 +192,12 @@ def _render_truth(context, tmp, i):
     return decode(_load_exr(ids[0])), depth[0]
 
 
-def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="EXR", light="STUDIO"):
-    """Render every camera into a nerfstudio dataset at `out_dir`; returns the transforms dict."""
+def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="PNG", light="STUDIO"):
+    """Render every camera into a nerfstudio dataset at `out_dir`; returns the transforms dict.
+    `depth_format`: "PNG" (16-bit millimetres) or "EXR" (32-bit float metres)."""
     scene = context.scene
+    if depth_format not in DEPTH_UNIT_SCALE:
+        raise ObjnerfError(f"depth format must be one of {', '.join(DEPTH_UNIT_SCALE)}, not '{depth_format}'")
     if not cams:
         raise ObjnerfError("no cameras: select cameras or generate a ring or dome")
     if not objs:
@@ -207,7 +211,7 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
     w, h = frames.render_size(scene)
     pax, pay = scene.render.pixel_aspect_x, scene.render.pixel_aspect_y
     tmp = tempfile.mkdtemp(prefix="objnerf_truth_")
-    saved, nodes = _Saved(), []
+    saved, nodes, nt = _Saved(), [], None
     r = scene.render
     frames_out = []
     try:
@@ -216,12 +220,12 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
         saved.set(r.image_settings, "file_format", "PNG")
         saved.set(r.image_settings, "color_mode", "RGB")
         saved.set(r.image_settings, "color_depth", "8")
-        saved.set(scene, "use_nodes", True)
         saved.set(scene.view_layers[0], "use_pass_z", True)
-        for nd in scene.node_tree.nodes:  # the user's own file outputs stay quiet
+        nt = compat.use_compositor(scene, saved.set)
+        for nd in nt.nodes:  # the user's own file outputs stay quiet
             if nd.bl_idname == "CompositorNodeOutputFile":
                 saved.set(nd, "mute", True)
-        nodes = _truth_nodes(scene, tmp)
+        nodes = _truth_nodes(nt, scene, tmp)
         for i, cam in enumerate(cams):
             scene.camera = cam
             stem = f"frame_{i:05d}"
@@ -249,10 +253,11 @@ def export_dataset(context, out_dir, cams, objs, engine, samples, depth_format="
             })
     finally:
         for nd in nodes:
-            scene.node_tree.nodes.remove(nd)
+            nt.nodes.remove(nd)
         saved.restore()
+        compat.drop_unused_compositor(nt)
         shutil.rmtree(tmp, ignore_errors=True)
-    return _write_transforms(out_dir, frames_out, objs, names, w, h)
+    return _write_transforms(out_dir, frames_out, objs, names, w, h, DEPTH_UNIT_SCALE[depth_format])
 
 
 def image_settings(saved, scene, engine, samples, truth, light="STUDIO"):
@@ -296,15 +301,21 @@ class _coded:
 
 
 def _write_depth(out_dir, stem, depth_exr, depth_format):
+    """The view's depth as the dataset stores it; returns its path relative to `out_dir`."""
     if depth_format == "EXR":
         shutil.move(depth_exr, os.path.join(out_dir, "depth", stem + ".exr"))
         return f"depth/{stem}.exr"
-    mm = np.rint(_load_exr(depth_exr)[..., 0] * 1000.0)
-    formats.write_png(os.path.join(out_dir, "depth", stem + ".png"), np.clip(mm, 0, 65535).astype(np.uint16))
+    mm = np.rint(_load_exr(depth_exr)[..., 0] / DEPTH_UNIT_SCALE["PNG"])
+    # Past 65.535 m a 16-bit millimetre cannot hold it: unknown (0) rather than a wrong depth.
+    mm[(mm > PNG_DEPTH_MAX_MM) | ~np.isfinite(mm)] = 0
+    formats.write_png(os.path.join(out_dir, "depth", stem + ".png"), mm.astype(np.uint16))
     return f"depth/{stem}.png"
 
 
-def _write_transforms(out_dir, frames_out, objs, names, w, h):
+def _write_transforms(out_dir, frames_out, objs, names, w, h, depth_unit_scale):
+    """transforms.json in the layout `objnerf export nerfstudio` writes (shared intrinsics at the
+    top, per-frame ones where cameras differ; tests/test_dataset.py reads it back through objnerf),
+    plus the depth unit; and objects.json."""
     top = {"camera_model": "PINHOLE", "w": w, "h": h}
     keys = ("fl_x", "fl_y", "cx", "cy")
     if all(all(abs(f[k] - frames_out[0][k]) < 1e-9 for k in keys) for f in frames_out):
@@ -312,7 +323,7 @@ def _write_transforms(out_dir, frames_out, objs, names, w, h):
         for f in frames_out:
             for k in keys:
                 del f[k]
-    tf = {**top, "frames": frames_out}
+    tf = {**top, "depth_unit_scale_factor": depth_unit_scale, "frames": frames_out}
     with open(os.path.join(out_dir, "transforms.json"), "w", encoding="utf-8") as f:
         json.dump(tf, f, indent=2)
         f.write("\n")
@@ -324,8 +335,8 @@ def _write_transforms(out_dir, frames_out, objs, names, w, h):
 
 
 class OBJNERF_OT_export_dataset(bpy.types.Operator):
-    """Render the open scene into a nerfstudio dataset: images, depth (EXR, metres) and
-    per-object masks, from the selected cameras or a generated ring or dome"""
+    """Render the open scene into a nerfstudio dataset: images, depth (16-bit PNG in millimetres,
+    or EXR in metres) and per-object masks, from the selected cameras or a generated ring or dome"""
 
     bl_idname = "objnerf.export_dataset"
     bl_label = "Export scene as dataset"
@@ -346,9 +357,9 @@ class OBJNERF_OT_export_dataset(bpy.types.Operator):
     light: EnumProperty(name="Workbench light", default="STUDIO", items=[
         ("STUDIO", "Studio", "Shaded by Workbench's studio light"),
         ("FLAT", "Flat", "Texture colours only, no shading")])
-    depth_format: EnumProperty(name="Depth", default="EXR", items=[
-        ("EXR", "EXR (metres)", "32-bit float, metres"),
-        ("PNG", "PNG (mm)", "16-bit millimetres, nerfstudio's default depth reading")])
+    depth_format: EnumProperty(name="Depth", default="PNG", items=[
+        ("PNG", "PNG (mm)", "16-bit millimetres, up to 65.535 m: what nerfstudio reads without flags"),
+        ("EXR", "EXR (metres)", "32-bit float metres; nerfstudio needs --depth-unit-scale-factor 1")])
 
     @reports_errors
     def execute(self, context):

@@ -22,7 +22,7 @@ import time
 import bpy
 from bpy.props import StringProperty
 
-from . import camera_path, cli, edit, prefs, props
+from . import camera_path, cli, compat, edit, prefs, props
 from .errors import ObjnerfError, reports_errors
 
 PASSES = "rgb,alpha,depth,index"
@@ -107,8 +107,7 @@ def load_render(context, root, out_dir, cam=None):
 
 
 def build_compositor(scene, frames_img, depth_img, n, depth_factor):
-    """objnerf's frames and Blender's render, Z-combined, into the Composite output."""
-    scene.use_nodes = True
+    """objnerf's frames and Blender's render, Z-combined, into the render result."""
     scene.view_layers[0].use_pass_z = True
     # Our PNGs are display-referred sRGB: the Standard view transform gives them back unchanged
     # (Filmic/AgX would tone-map them a second time).
@@ -116,16 +115,18 @@ def build_compositor(scene, frames_img, depth_img, n, depth_factor):
     scene.view_settings.look = "None"
     scene.view_settings.exposure = 0.0
     scene.view_settings.gamma = 1.0
-    nt = scene.node_tree
+    nt = compat.compositor_tree(scene)
     for node in list(nt.nodes):
         if node.name.startswith(NODE_PREFIX):
             nt.nodes.remove(node)
 
-    def node(kind, name, x, y):
-        nd = nt.nodes.new(kind)
+    def named(nd, name, x, y):
         nd.name = nd.label = NODE_PREFIX + name
         nd.location = (x, y)
         return nd
+
+    def node(kind, name, x, y):
+        return named(nt.nodes.new(kind), name, x, y)
 
     ours = node("CompositorNodeImage", "frames", -600, 300)
     ours.image = frames_img
@@ -134,20 +135,15 @@ def build_compositor(scene, frames_img, depth_img, n, depth_factor):
     for nd in (ours, ours_z):
         _set_sequence_user(nd, scene, n)
     split = node("CompositorNodeSeparateColor", "depth channel", -400, 0)
-    scale = node("CompositorNodeMath", "depth to Blender units", -200, 0)
+    scale = node(compat.MATH_NODE, "depth to Blender units", -200, 0)
     scale.operation = "MULTIPLY"
     scale.inputs[1].default_value = depth_factor
-    cap = node("CompositorNodeMath", "depth cap", 0, 0)
+    cap = node(compat.MATH_NODE, "depth cap", 0, 0)
     cap.operation = "MINIMUM"
     cap.inputs[1].default_value = FAR
     layers = node("CompositorNodeRLayers", "render layers", -600, -300)
     layers.scene = scene
-    zc = node("CompositorNodeZcombine", "z combine", 200, 100)
-    zc.use_alpha = False
-    zc.use_antialias_z = True
-    comp = next((nd for nd in nt.nodes if nd.bl_idname == "CompositorNodeComposite"), None)
-    if comp is None:
-        comp = node("CompositorNodeComposite", "composite", 400, 100)
+    zc = named(compat.zcombine(nt, use_alpha=False, antialias=True), "z combine", 200, 100)
     link = nt.links.new
     link(ours_z.outputs["Image"], split.inputs[0])
     link(split.outputs[0], scale.inputs[0])
@@ -156,7 +152,7 @@ def build_compositor(scene, frames_img, depth_img, n, depth_factor):
     link(cap.outputs[0], zc.inputs[1])
     link(layers.outputs["Image"], zc.inputs[2])
     link(layers.outputs["Depth"], zc.inputs[3])
-    link(zc.outputs["Image"], comp.inputs["Image"])
+    link(zc.outputs[0], compat.composite_input(nt))
 
 
 # -------------------------------------------------------------------------------- operators

@@ -1,4 +1,5 @@
-"""The "objnerf" tab in the 3D viewport's sidebar: import, edit, camera path, render, dataset."""
+"""The "objnerf" tab in the 3D viewport's sidebar (import, edit, camera path, render, dataset)
+and the importers' entries in File > Import, where Blender users look for them."""
 
 import bpy
 
@@ -63,6 +64,26 @@ class OBJNERF_PT_panel(bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text="Blender scene to dataset")
         col.operator("objnerf.export_dataset", icon="OUTLINER_OB_CAMERA")
+
+
+# (operator, menu text) in File > Import.
+IMPORT_MENU = (
+    ("objnerf.import_run", "objnerf run (report.json)"),
+    ("objnerf.import_scene", "objnerf scene (transforms.json)"),
+)
+
+
+def draw_import_menu(self, context):
+    for idname, text in IMPORT_MENU:
+        self.layout.operator(idname, text=text)
+
+
+def register_menus():
+    bpy.types.TOPBAR_MT_file_import.append(draw_import_menu)
+
+
+def unregister_menus():
+    bpy.types.TOPBAR_MT_file_import.remove(draw_import_menu)
 
 
 CLASSES = (OBJNERF_PT_panel,)

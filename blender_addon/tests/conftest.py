@@ -1,4 +1,5 @@
-"""Fixtures for the add-on's tests, which run in real Blender (`bpy` 4.5 from PyPI).
+"""Fixtures for the add-on's tests, which run in real Blender: `bpy` 4.5 and 5.2 from PyPI, each
+in its own venv (scripts/test-blender runs them in both).
 
 * `addon`: a fresh empty Blender session with the add-on enabled through Blender's add-on
   system (so preferences exist), disabled again afterwards.

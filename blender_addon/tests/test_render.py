@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import standin
 from conftest import ADDON_DIR, blender_report, scene_objects
-from objnerf_blender import render
+from objnerf_blender import compat, render
 
 
 def setup_scene(demo_run, n_frames=3):
@@ -82,7 +82,7 @@ def test_load_render_operator_reads_a_folder(prefs, demo_run, tmp_path):
     setup_scene(demo_run, n_frames=2)
     render.start_job(bpy.context, scene_objects("ROOT")[0], str(tmp_path / "w"))[0].wait()
     assert bpy.ops.objnerf.load_render(directory=str(tmp_path / "w" / "render")) == {"FINISHED"}
-    names = {n.name for n in bpy.context.scene.node_tree.nodes}
+    names = {n.name for n in compat.compositor_tree(bpy.context.scene, create=False).nodes}
     assert {"objnerf z combine", "objnerf frames", "objnerf depth"} <= names
     with blender_report("no frame_00000.png"):
         bpy.ops.objnerf.load_render(directory=str(tmp_path))
