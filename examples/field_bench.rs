@@ -123,7 +123,7 @@ fn demo(args: &[String]) -> objnerf::Result<()> {
         .get(5)
         .map(|s| s.parse().map_err(objnerf::Error::invalid))
         .transpose()?
-        .unwrap_or(field::DepthMode::None);
+        .unwrap_or(objnerf::supervision::DepthMode::None);
     // FIELD_STEPS: a fixed step count instead of the time budget (the same result at any load).
     let mut train = TrainConfig::default();
     optimiser_overrides(&mut train);
@@ -179,7 +179,7 @@ fn main() -> objnerf::Result<()> {
     let steps: usize = args
         .get(5)
         .and_then(|s| s.parse().ok())
-        .unwrap_or(field::fit::UNCAPPED_STEPS);
+        .unwrap_or(objnerf::fit::UNCAPPED_STEPS);
     let t0 = std::time::Instant::now();
     let train = objnerf::Scene::load(&dir.join("transforms_train.json"))?;
     let test = objnerf::Scene::load(&dir.join("transforms_test.json"))?;
@@ -190,7 +190,6 @@ fn main() -> objnerf::Result<()> {
     // the passes the budget affords).
     let mut setup = SetupConfig {
         sh_degree: degree,
-        time_budget: Some(secs),
         ..Default::default()
     };
     if let Some(v) = env("FIELD_VPP") {
@@ -234,7 +233,7 @@ fn main() -> objnerf::Result<()> {
     optimiser_overrides(&mut cfg);
     let cpu0 = cpu_seconds();
     let t1 = std::time::Instant::now();
-    let (mut trainer, rays, report) = field::prepare(&views, &[], &setup, cfg)?;
+    let (mut trainer, rays, report) = field::prepare(&views, &[], &setup, cfg, Some(secs))?;
     let prep_s = t1.elapsed().as_secs_f64();
     eprintln!("{}", serde_json::to_string(&report).unwrap_or_default());
     let stop = StopRule {

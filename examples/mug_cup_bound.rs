@@ -12,7 +12,7 @@
 
 use glam::DVec3;
 use objnerf::demo::geometry::{Ray, Shape, World};
-use objnerf::eval::chamfer::{sample_surface, PointGrid};
+use objnerf::mesh::chamfer::{sample_surface, PointGrid};
 use objnerf::util::Rng;
 use objnerf::Scene;
 use rayon::prelude::*;

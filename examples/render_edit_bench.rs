@@ -13,13 +13,13 @@
 mod bench;
 
 use bench::{cpu_seconds, git_commit, machine};
-use objnerf::demo::edit::{demo_orbit, EditTruth};
+use objnerf::demo::edit_truth::{demo_orbit, EditTruth};
 use objnerf::edit::{load_edit, EditFile};
 use objnerf::field::{RayCamera, RenderOptions};
-use objnerf::pipeline::demo_edit::ensure_edit_fields;
+use objnerf::pipeline::edit_fields::ensure_edit_fields;
 use objnerf::pipeline::render_edit::RenderEditOptions;
 use objnerf::render::composite::{render_frame, Composite};
-use objnerf::render::frames::Passes;
+use objnerf::render::frame_files::Passes;
 use objnerf::scene::camera_path::CameraPath;
 use objnerf::util::chart::{layers, series, svg, Layer, Panel, RGBColor, SeriesLabelPosition};
 use objnerf::util::mem::peak_rss_mib;

@@ -9,11 +9,9 @@
 mod bench;
 
 use objnerf::field::eval::evaluate;
-use objnerf::field::holdout::is_held_out;
-use objnerf::field::{
-    fit_scene_field, load_views, FitOptions, MaskSource, RenderOptions, SceneFitOptions,
-    SetupConfig,
-};
+use objnerf::field::holdout::held_out_views;
+use objnerf::field::{load_views, MaskSource, RenderOptions, SetupConfig};
+use objnerf::fit::{FitOptions, SceneFit, SceneFitOptions, SCENE_FIT_VIEWS};
 use std::path::PathBuf;
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -37,13 +35,7 @@ fn main() -> objnerf::Result<()> {
     if let Some(v) = env("SF_FIRST_SHARE") {
         setup.first_stage_share = v;
     }
-    let held: Vec<String> = scene
-        .images
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| is_held_out(*i, 6))
-        .map(|(_, im)| im.name.clone())
-        .collect();
+    let held = held_out_views(&scene, 6);
     let d = SceneFitOptions::default();
     let mut opts = SceneFitOptions {
         space: env("SF_SPACE").unwrap_or_default(),
@@ -74,16 +66,20 @@ fn main() -> objnerf::Result<()> {
     let cpu0 = bench::cpu_seconds();
     let t0 = std::time::Instant::now();
     let mut last = 0.0;
-    let fitted = fit_scene_field(&scene, &opts, &mut |s| {
+    let mut fit = SceneFit::new(&scene, &opts)?;
+    eprintln!("space: {}", fit.space_choice());
+    fit.train(&opts.fit.stop_rule(), &mut |s| {
         if s.seconds >= last {
             eprintln!("t={:.0}s step={} psnr={:.2}", s.seconds, s.step, s.psnr);
             last = s.seconds + 20.0;
         }
-    })?;
+    });
+    fit.check_fit(SCENE_FIT_VIEWS);
+    let fitted = fit.finish();
     let train_s = t0.elapsed().as_secs_f64();
     if let Ok(path) = std::env::var("SF_SAVE") {
-        let notes = objnerf::field::model_notes(
-            objnerf::field::FieldKind::Scene,
+        let notes = objnerf::fit::model_notes(
+            objnerf::fit::FieldKind::Scene,
             &scene,
             &opts.fit,
             &fitted.report,

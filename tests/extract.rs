@@ -4,8 +4,8 @@
 mod common;
 
 use objnerf::demo::{read_truth, write_demo_scene, DemoOptions};
-use objnerf::eval::chamfer::chamfer_distance;
 use objnerf::field::{io as model_io, Field, FieldConfig};
+use objnerf::mesh::chamfer::chamfer_distance;
 use objnerf::mesh::io::read_ply;
 use std::path::Path;
 use std::process::Command;

@@ -37,7 +37,7 @@ fn train_with(
     cfg: TrainConfig,
     steps: usize,
 ) -> field::Trainer {
-    let (mut t, rays, _) = field::prepare(views, &[], setup, cfg).unwrap();
+    let (mut t, rays, _) = field::prepare(views, &[], setup, cfg, None).unwrap();
     for _ in 0..steps {
         t.train_step(views, &rays);
     }
@@ -179,7 +179,7 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
         net_features: 40,
         ..Default::default()
     };
-    let e = field::prepare(&views, &[], &bad, small_cfg(1))
+    let e = field::prepare(&views, &[], &bad, small_cfg(1), None)
         .err()
         .expect("an error");
     assert!(e.to_string().contains("features"), "{e}");
@@ -189,7 +189,8 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
         ..net_setup()
     };
     let (t, _, report) =
-        field::prepare(&views, &[], &at_least(views.len() + 1), small_cfg(1)).expect("SH colour");
+        field::prepare(&views, &[], &at_least(views.len() + 1), small_cfg(1), None)
+            .expect("SH colour");
     assert!(t.field.net.is_none() && t.field.grid.channels == 13);
     assert!(report.why.contains("fewer than"), "{}", report.why);
     // ... and so does the learning rates' decay: a network field's is shallower.
@@ -197,7 +198,7 @@ fn a_colour_network_trains_repeatably_resumes_exactly_and_learns() {
     assert_eq!(t.cfg.lr_final, cfg.lr_final);
     assert_eq!(t.cfg.average_from, cfg.average_from);
     let (t, _, report) =
-        field::prepare(&views, &[], &at_least(views.len()), cfg.clone()).expect("a network");
+        field::prepare(&views, &[], &at_least(views.len()), cfg.clone(), None).expect("a network");
     assert!(t.field.net.is_some());
     assert_eq!(t.cfg.lr_final, cfg.lr_final_network);
     assert_ne!(cfg.lr_final, cfg.lr_final_network);
@@ -231,7 +232,8 @@ fn a_budget_that_coarsens_the_first_stage_starts_the_schedule_coarser() {
         (tight(views.len() + 1), false),
         (tight(0), true),
     ] {
-        let (t, _, report) = field::prepare(&views, &[], &setup, cfg.clone()).expect("a trainer");
+        let (t, _, report) =
+            field::prepare(&views, &[], &setup, cfg.clone(), None).expect("a trainer");
         let want = if coarser {
             &cfg.stages_when_capped
         } else {
@@ -532,8 +534,14 @@ fn lego_200_reaches_28_db_within_5_minutes() {
     let (Some(views), Some(test)) = (lego_views("train", 4, 1), lego_views("test", 4, 1)) else {
         return;
     };
-    let (mut t, rays, setup) =
-        field::prepare(&views, &[], &SetupConfig::default(), TrainConfig::default()).unwrap();
+    let (mut t, rays, setup) = field::prepare(
+        &views,
+        &[],
+        &SetupConfig::default(),
+        TrainConfig::default(),
+        None,
+    )
+    .unwrap();
     let stop = field::StopRule {
         time_budget: Some(300.0),
         plateau_db: None,
@@ -676,7 +684,7 @@ fn a_network_field_ends_on_the_mean_of_its_last_parameters() {
         ..small_cfg(20)
     };
     let (mut by_hand, rays, report) =
-        field::prepare(&views, &[], &net_setup(), cfg.clone()).unwrap();
+        field::prepare(&views, &[], &net_setup(), cfg.clone(), None).unwrap();
     assert!(
         report.why.contains("mean of its parameters"),
         "{}",
@@ -691,7 +699,7 @@ fn a_network_field_ends_on_the_mean_of_its_last_parameters() {
             nets.push(t.field.net.as_ref().unwrap().weights.clone());
         }
     }
-    let (mut t, rays, _) = field::prepare(&views, &[], &net_setup(), cfg.clone()).unwrap();
+    let (mut t, rays, _) = field::prepare(&views, &[], &net_setup(), cfg.clone(), None).unwrap();
     let summary = field::run(&mut t, &views, &rays, &field::StopRule::default(), |_| {});
     assert_eq!((summary.steps, summary.averaged), (20, grids.len() as u32));
     let data = &t.field.grid.data;
@@ -713,7 +721,7 @@ fn a_network_field_ends_on_the_mean_of_its_last_parameters() {
         }
     }
     // Stopped as a phase (before the schedule's end), the run keeps its last parameters.
-    let (mut p, rays, _) = field::prepare(&views, &[], &net_setup(), cfg).unwrap();
+    let (mut p, rays, _) = field::prepare(&views, &[], &net_setup(), cfg, None).unwrap();
     let phase = field::StopRule {
         until_step: Some(16),
         ..Default::default()

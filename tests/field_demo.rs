@@ -6,7 +6,8 @@ mod common;
 
 use objnerf::demo::holdout::{demo_object, DemoReport, DemoRun};
 use objnerf::demo::{write_demo_scene, DemoOptions};
-use objnerf::field::{DepthMode, StopRule, TrainConfig};
+use objnerf::field::{StopRule, TrainConfig};
+use objnerf::supervision::DepthMode;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

@@ -5,8 +5,8 @@
 mod common;
 
 use objnerf::demo::{read_truth, write_demo_scene, DemoLayout, DemoOptions};
-use objnerf::field::layout::choose_space;
-use objnerf::field::SpaceChoice;
+use objnerf::space::layout::choose_space;
+use objnerf::space::SpaceChoice;
 use objnerf::Scene;
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -7,7 +7,7 @@ mod common;
 
 use common::{objnerf_bin, objnerf_ok};
 use glam::Vec3;
-use objnerf::demo::edit::demo_orbit;
+use objnerf::demo::edit_truth::demo_orbit;
 use objnerf::demo::fields::{write_object_field, DemoFieldOptions};
 use objnerf::demo::{write_demo_scene, DemoOptions};
 use objnerf::field::io::{save, IDENTITY};

@@ -14,8 +14,8 @@ mod common;
 
 use common::objnerf_bin;
 use glam::DVec3;
-use objnerf::demo::edit::demo_orbit;
-use objnerf::pipeline::demo_edit::{ensure_edit_fields, EditFields};
+use objnerf::demo::edit_truth::demo_orbit;
+use objnerf::pipeline::edit_fields::{ensure_edit_fields, EditFields};
 use objnerf::scene::camera_path::PathFrame;
 use serde_json::json;
 use std::path::{Path, PathBuf};

@@ -1,6 +1,6 @@
 //! `objnerf bench ...`: benchmark suites that run whole jobs and score them against truth.
 
-use super::progress::Bars;
+use crate::cli::progress_bars::Bars;
 use clap::{Args, Subcommand};
 use objnerf::bench::stability::{run_suite, StabilityOptions, Verdict};
 use objnerf::models::ModelsDir;

@@ -1,14 +1,14 @@
 //! `objnerf render-edit` and `objnerf edit-template`: edits of a captured scene.
 
 use super::print_json;
-use super::progress::Bars;
+use crate::cli::progress_bars::Bars;
 use clap::{ArgGroup, Args};
 use objnerf::demo::parse_size;
 use objnerf::edit::recolour::{hex_colour, parse_hex_colour};
 use objnerf::edit::template::{edit_template, TemplateBackground};
 use objnerf::field::RenderOptions;
 use objnerf::pipeline::render_edit::{render_edit, PathSource, RenderEditOptions};
-use objnerf::render::frames::Passes;
+use objnerf::render::frame_files::Passes;
 use objnerf::{Error, Result};
 use std::path::PathBuf;
 

@@ -1,15 +1,16 @@
 //! `objnerf train`, `objnerf render` and `objnerf eval`: one field at a time.
 
-use super::progress::Bars;
+use super::training::TimeBudgetArg;
+use crate::cli::progress_bars::Bars;
 use clap::Args;
-use objnerf::field::holdout::is_held_out;
-use objnerf::field::io::{self, IDENTITY};
-use objnerf::field::{
-    eval::evaluate_model, fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind,
-    FitOptions, MaskSource, SceneFitOptions, SetupConfig, SpaceChoice,
-};
+use objnerf::field::holdout::held_out_views;
+use objnerf::field::io;
+use objnerf::field::{eval::evaluate_model, MaskSource, SetupConfig};
+use objnerf::fit::{FitOptions, SceneFitOptions};
+use objnerf::pipeline::train::{train, FieldTarget};
 use objnerf::render::render_scene_views;
-use objnerf::util::Progress;
+use objnerf::space::SpaceChoice;
+use objnerf::supervision::DepthMode;
 use objnerf::{Result, Scene};
 use std::path::PathBuf;
 
@@ -33,10 +34,10 @@ pub struct TrainCmd {
     /// Train on images downscaled by this factor (box filter).
     #[arg(long, default_value_t = FitOptions::default().downscale)]
     downscale: u32,
-    /// Train for this many seconds: without --steps the schedule follows the time and training
-    /// runs to the end of it; with --steps it stops at whichever comes first.
-    #[arg(long)]
-    time_budget: Option<f64>,
+    /// Without --steps the schedule follows the time and training runs to the end of it; with
+    /// --steps it stops at whichever comes first.
+    #[command(flatten)]
+    time: TimeBudgetArg,
     /// Depth supervision: sparse (the sparse 3D points), spread (their depths spread over each
     /// view where nearby points agree on a surface), stereo (plane-sweep stereo between
     /// neighbouring photos where it is clear), dense (depth images) or none. Default: none for an
@@ -91,11 +92,15 @@ pub struct TrainCmd {
 }
 
 impl TrainCmd {
-    pub fn run(self) -> Result<()> {
-        let scene = Scene::load(&self.scene)?;
-        let opts = FitOptions {
+    /// The training time this command was given (none by default).
+    pub(super) fn time_budget(&self) -> Option<f64> {
+        self.time.or(None)
+    }
+
+    fn options(&self, scene: &Scene) -> FitOptions {
+        FitOptions {
             downscale: self.downscale,
-            time_budget: self.time_budget,
+            time_budget: self.time_budget(),
             depth: self.depth.unwrap_or(if self.scene_field {
                 SceneFitOptions::default().fit.depth
             } else {
@@ -113,60 +118,23 @@ impl TrainCmd {
                 memory_budget: self.memory_mb << 20,
                 ..Default::default()
             },
-            exclude_views: scene
-                .images
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| is_held_out(*i, self.hold_out_every))
-                .map(|(_, im)| im.name.clone())
-                .collect(),
+            exclude_views: held_out_views(scene, self.hold_out_every),
             mask_band: self.mask_band,
-        };
-        let bars = Bars::default();
-        // Training for the whole budget, the bar counts seconds (the steps are not known).
-        let seconds = opts.time_budget.filter(|_| opts.whole_budget);
-        bars.begin(
-            if seconds.is_some() {
-                "train (s)"
-            } else {
-                "train"
+        }
+    }
+
+    pub fn run(self) -> Result<()> {
+        let scene = Scene::load(&self.scene)?;
+        let opts = self.options(&scene);
+        let target = match &self.masks {
+            Some(masks) => FieldTarget::Object {
+                masks: MaskSource::parse(masks, &self.scene)?,
+                resume: self.resume.clone(),
             },
-            seconds.map_or(opts.steps as u64, |s| s.ceil() as u64),
-        );
-        let mut progress = |s: &objnerf::field::train::StepStats| {
-            let done = if seconds.is_some() {
-                s.seconds as u64
-            } else {
-                s.step as u64
-            };
-            bars.advance(done, s.detail())
+            None => FieldTarget::Scene { space: self.space },
         };
-        let fitted = match &self.masks {
-            Some(masks) => {
-                let masks = MaskSource::parse(masks, &self.scene)?;
-                let resume = self.resume.as_deref().map(io::load).transpose()?;
-                fit_scene(&scene, &masks, &opts, resume, &mut progress)?
-            }
-            None => {
-                let space =
-                    objnerf::field::layout::choose_space(&scene, self.space, opts.downscale)?;
-                eprintln!("space: {} ({})", space.space.name(), space.why);
-                let scene_opts = SceneFitOptions {
-                    space: self.space,
-                    fit: opts.clone(),
-                    ..Default::default()
-                };
-                fit_scene_field(&scene, &scene_opts, &mut progress)?
-            }
-        };
-        bars.end();
-        let kind = match self.masks {
-            Some(_) => FieldKind::Object,
-            None => FieldKind::Scene,
-        };
-        let notes = model_notes(kind, &scene, &opts, &fitted.report);
-        io::save(&self.out, &fitted.trainer.parts(IDENTITY, notes))?;
-        let r = &fitted.report;
+        let report = train(&scene, &target, &opts, &self.out, &Bars::default())?;
+        let r = &report;
         if let Some(s) = &r.setup {
             eprintln!(
                 "{} space, box {:?}..{:?}; grid {:?} ({} vertices) because {}",

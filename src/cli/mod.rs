@@ -9,11 +9,12 @@ mod export;
 mod field;
 mod mesh;
 mod models;
-mod progress;
+mod progress_bars;
 mod remove;
 mod run;
 mod scene;
 mod segment;
+mod training;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use objnerf::Result;

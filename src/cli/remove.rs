@@ -1,10 +1,13 @@
 //! `objnerf remove`: objects taken out of a scene (a scene field trained with the reverse alpha).
 
-use super::progress::Bars;
+use super::training::TimeBudgetArg;
+use crate::cli::progress_bars::Bars;
 use clap::Args;
-use objnerf::field::hole::HoleFill;
-use objnerf::field::{FitOptions, SceneFitOptions, SetupConfig, SpaceChoice};
+use objnerf::field::SetupConfig;
+use objnerf::fit::{FitOptions, SceneFitOptions};
 use objnerf::pipeline::{remove, RemoveOptions};
+use objnerf::removal::hole::HoleFill;
+use objnerf::space::SpaceChoice;
 use objnerf::{Result, Scene};
 use std::path::PathBuf;
 
@@ -27,9 +30,8 @@ pub struct RemoveCmd {
     /// Train on images downscaled by this factor (box filter).
     #[arg(long, default_value_t = FitOptions::default().downscale)]
     downscale: u32,
-    /// Seconds of training.
-    #[arg(long, default_value_t = RemoveOptions::default().field.fit.time_budget.unwrap_or(0.0))]
-    time_budget: f64,
+    #[command(flatten)]
+    time: TimeBudgetArg,
     /// Most optimisation steps (the learning-rate schedule spans them).
     #[arg(long, default_value_t = FitOptions::default().steps)]
     steps: usize,
@@ -54,27 +56,29 @@ pub struct RemoveCmd {
 }
 
 impl RemoveCmd {
-    pub fn run(self) -> Result<()> {
-        let scene = Scene::load(&self.scene)?;
+    pub(super) fn options(&self) -> RemoveOptions {
         let defaults = RemoveOptions::default();
         let mut field = defaults.field.clone();
         field.space = self.space;
         field.dilate_px = self.dilate;
         field.fit.downscale = self.downscale;
-        field.fit.time_budget = (self.time_budget > 0.0).then_some(self.time_budget);
+        field.fit.time_budget = self.time.or(defaults.field.fit.time_budget);
         field.fit.steps = self.steps;
         field.fit.seed = self.seed;
         field.fit.setup.memory_budget = self.memory_mb << 20;
-        let opts = RemoveOptions {
-            objects: self.objects,
+        RemoveOptions {
+            objects: self.objects.clone(),
             field,
             hold_out_every: self.hold_out_every,
             fill: self.fill,
             overwrite: self.overwrite,
             ..defaults
-        };
-        let space = objnerf::field::layout::choose_space(&scene, opts.field.space, self.downscale)?;
-        eprintln!("space: {} ({})", space.space.name(), space.why);
+        }
+    }
+
+    pub fn run(self) -> Result<()> {
+        let scene = Scene::load(&self.scene)?;
+        let opts = self.options();
         let bars = Bars::default();
         let r = remove(&scene, &self.segment, &opts, &self.out, &bars)?;
         if let Some(s) = &r.train.setup {

@@ -1,26 +1,20 @@
 //! `objnerf extract` (click to mesh) and `objnerf demo` (the same on the built-in scene, scored
 //! against its truth).
 
-use super::progress::Bars;
 use super::segment::{prompts_in_order, ClickArgs};
+use super::training::TimeBudgetArg;
 use super::{print_json, print_warnings};
+use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
-use objnerf::field::DepthMode;
 use objnerf::mesh::from_field::FieldMeshOptions;
 use objnerf::models::ModelsDir;
 use objnerf::pipeline::demo::{prepare_demo, run_demo};
 use objnerf::pipeline::{extract, ExtractOptions, ExtractReport};
 use objnerf::render::TurntableOptions;
 use objnerf::segment::check_request;
+use objnerf::supervision::DepthMode;
 use objnerf::{Result, Scene};
 use std::path::PathBuf;
-
-fn default_budget() -> f64 {
-    ExtractOptions::default()
-        .fit
-        .time_budget
-        .unwrap_or(f64::INFINITY)
-}
 
 #[derive(Args, Debug)]
 pub struct ExtractCmd {
@@ -32,9 +26,8 @@ pub struct ExtractCmd {
     /// Train on images downscaled by this factor.
     #[arg(long, default_value_t = ExtractOptions::default().fit.downscale)]
     pub downscale: u32,
-    /// Seconds of training per object.
-    #[arg(long, default_value_t = default_budget())]
-    pub time_budget: f64,
+    #[command(flatten)]
+    pub time: TimeBudgetArg,
     /// Most training steps per object.
     #[arg(long, default_value_t = ExtractOptions::default().fit.steps)]
     pub steps: usize,
@@ -71,14 +64,14 @@ pub struct ExtractCmd {
 }
 
 impl ExtractCmd {
-    fn options(&self) -> ExtractOptions {
+    pub(super) fn options(&self) -> ExtractOptions {
         let mut o = ExtractOptions {
             overwrite: self.overwrite,
             hold_out_every: self.hold_out_every,
             ..Default::default()
         };
         o.fit.downscale = self.downscale;
-        o.fit.time_budget = Some(self.time_budget);
+        o.fit.time_budget = self.time.or(o.fit.time_budget);
         o.fit.steps = self.steps;
         o.fit.depth = self.depth;
         o.fit.seed = self.seed;
@@ -173,9 +166,8 @@ pub struct DemoCmd {
     /// Which object to extract: mug, sphere, box or torus.
     #[arg(long, default_value = "mug")]
     pub object: String,
-    /// Seconds of training.
-    #[arg(long, default_value_t = demo_options().fit.time_budget.unwrap_or(f64::INFINITY))]
-    pub time_budget: f64,
+    #[command(flatten)]
+    pub time: TimeBudgetArg,
     /// Most training steps.
     #[arg(long, default_value_t = demo_options().fit.steps)]
     pub steps: usize,
@@ -186,11 +178,16 @@ pub struct DemoCmd {
 }
 
 impl DemoCmd {
-    pub fn run(self) -> Result<()> {
+    pub(super) fn options(&self) -> ExtractOptions {
         let mut opts = demo_options();
-        opts.fit.time_budget = Some(self.time_budget);
+        opts.fit.time_budget = self.time.or(opts.fit.time_budget);
         opts.fit.steps = self.steps;
         opts.fit.setup.net_features = self.colour_net;
+        opts
+    }
+
+    pub fn run(self) -> Result<()> {
+        let opts = self.options();
         let setup = prepare_demo(&self.out, &self.object)?;
         let s = &setup.written;
         println!(

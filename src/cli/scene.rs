@@ -1,9 +1,9 @@
 //! `objnerf info`, `objnerf sfm` and `objnerf demo-scene`: scenes in.
 
 use super::print_json;
-use super::progress::Bars;
+use crate::cli::progress_bars::Bars;
 use clap::Args;
-use objnerf::demo::edit::write_edit_truth;
+use objnerf::demo::edit_truth::write_edit_truth;
 use objnerf::demo::{parse_size, write_demo_scene, DemoLayout, DemoOptions, Variant};
 use objnerf::edit::{load_edit, EditFile};
 use objnerf::scene::camera_path::{CameraPath, PathFrame};

@@ -1,7 +1,7 @@
 //! `objnerf segment`, and the clicks it shares with `extract`.
 
-use super::progress::Bars;
 use super::{print_json, print_warnings};
+use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
 use objnerf::models::ModelsDir;
 use objnerf::sam::prompt::parse_point;

@@ -4,10 +4,12 @@
 
 use super::geometry::World;
 use crate::error::{Error, Result};
-use crate::field::fit::{fit_scene, model_notes, FieldKind, TrainReport};
 use crate::field::io::{save, IDENTITY};
-use crate::field::{DepthMode, FitOptions, MaskSource};
+use crate::field::MaskSource;
+use crate::fit::FitOptions;
+use crate::fit::{fit_object, model_notes, FieldKind, TrainReport};
 use crate::scene::Scene;
+use crate::supervision::DepthMode;
 use std::path::Path;
 
 /// How long to train and at which image size.
@@ -84,7 +86,7 @@ pub fn write_object_field(
     let scene = load_scene(scene_dir)?;
     let masks = MaskSource::Dir(scene_dir.join("truth/masks").join(object));
     let fit = fit_options(opts);
-    let fitted = fit_scene(&scene, &masks, &fit, None, &mut |s| report(opts, s))?;
+    let fitted = fit_object(&scene, &masks, &fit, None, &mut |s| report(opts, s))?;
     let notes = model_notes(FieldKind::Object, &scene, &fit, &fitted.report);
     save(out, &fitted.trainer.parts(IDENTITY, notes))?;
     Ok(fitted.report)

@@ -3,12 +3,13 @@
 //! field tests and benchmarks use it.
 
 use crate::error::{Error, Result};
-use crate::field::depth::add_dense_depth;
 use crate::field::eval::evaluate;
-use crate::field::fit::add_depth_targets;
 use crate::field::holdout::{depth_error, split_every, DepthError};
 use crate::field::session::{prepare, RunSummary, SetupConfig, SetupReport, StopRule};
-use crate::field::{load_views, DepthMode, MaskSource, RenderOptions, TrainConfig, View};
+use crate::field::{load_views, MaskSource, RenderOptions, TrainConfig, View};
+use crate::supervision::add_depth_targets;
+use crate::supervision::depth::add_dense_depth;
+use crate::supervision::DepthMode;
 use serde::Serialize;
 use std::path::Path;
 
@@ -84,7 +85,7 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
     let (train, _) = split_every(views, run.every);
     let (_, test) = split_every(scoring, run.every);
     let points = crate::field::bounds::points_in_masks(&scene, &train, run.downscale);
-    let (mut trainer, rays, setup) = prepare(&train, &points, &run.setup, run.train.clone())?;
+    let (mut trainer, rays, setup) = prepare(&train, &points, &run.setup, run.train.clone(), None)?;
     let summary = crate::field::session::run(&mut trainer, &train, &rays, &run.stop, |_| {});
     let opt = RenderOptions {
         pixel_samples: run.pixel_samples,

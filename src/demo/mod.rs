@@ -25,7 +25,7 @@
 //! Everything is a pure function of the options: all randomness goes through [`Rng`] seeded from
 //! `seed`, and the parallel rendering writes each pixel from its position alone.
 
-pub mod edit;
+pub mod edit_truth;
 pub mod fields;
 pub mod geometry;
 pub mod holdout;

@@ -4,9 +4,9 @@
 use super::holdout::is_held_out;
 use super::io::Model;
 use super::model::Field;
-use super::render::{render_ray, RenderOptions};
 use super::view::{load_views, MaskSource, RayCamera, View};
 use crate::error::Result;
+use crate::field::march::{render_ray, RenderOptions};
 use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -23,6 +23,14 @@ pub struct Rendered {
 }
 
 /// A whole view over the background `bg`, rows in parallel, each pixel the mean of
+/// Render every view of `views` (colour on white, alpha, depth).
+pub fn render_all(field: &Field, opt: &RenderOptions, views: &[View]) -> Vec<Rendered> {
+    views
+        .iter()
+        .map(|v| render_view(field, opt, v, [1.0; 3]))
+        .collect()
+}
+
 /// `opt.pixel_samples` x `opt.pixel_samples` rays over its square.
 pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3]) -> Rendered {
     let (w, h) = (view.width, view.height);

@@ -2,8 +2,8 @@
 //! field against true depth (the demo scene's truth, or any depth images).
 
 use super::model::Field;
-use super::render::{forward, RenderOptions};
 use super::view::View;
+use crate::field::march::{forward, RenderOptions};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -101,4 +101,16 @@ pub fn depth_error(f: &Field, opt: &RenderOptions, views: &[View]) -> DepthError
         pixels: abs.len(),
         transparent,
     }
+}
+
+/// The names of every `every`-th view of `scene` (views every/2, every/2 + every, ...; 0:
+/// none), to hold out of training.
+pub fn held_out_views(scene: &crate::scene::Scene, every: usize) -> Vec<String> {
+    scene
+        .images
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| is_held_out(*i, every))
+        .map(|(_, im)| im.name.clone())
+        .collect()
 }

@@ -119,40 +119,23 @@
 
 pub mod activation;
 pub mod bounds;
-pub mod checks;
 pub mod colour_net;
-pub mod depth;
-pub mod edge;
 pub mod eval;
-pub mod fit;
 pub mod grid;
 pub mod holdout;
-pub mod hole;
 pub mod io;
-pub mod layout;
 pub mod live;
+pub mod march;
 pub mod model;
 mod occupancy;
-pub mod pattern;
 pub mod rays;
-pub mod removed;
-pub mod render;
-pub mod scene_checks;
 pub mod session;
 pub mod sh;
-pub mod space;
-pub mod stereo;
 pub mod train;
 pub mod view;
 
-pub use fit::{
-    fit_scene, fit_scene_field, model_notes, DepthMode, FieldKind, FitOptions, Fitted, SceneFit,
-    SceneFitOptions, TrainReport,
-};
-pub use layout::SpaceChoice;
+pub use march::RenderOptions;
 pub use model::{Field, FieldConfig};
-pub use render::RenderOptions;
 pub use session::{prepare, run, SetupConfig, StopRule};
-pub use space::Space;
 pub use train::{TrainConfig, Trainer};
 pub use view::{load_views, MaskSource, RayCamera, View};

@@ -12,7 +12,7 @@ use super::colour_net::{reflect, ColourNet, MAX_HIDDEN};
 use super::grid::{Corners, Grid, BRICK, BRICK_VERTICES, NONE};
 use super::live::LiveBricks;
 use super::sh::{sh_basis, sh_coeffs, SH_TERMS};
-use super::space::Space;
+use crate::space::Space;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 

@@ -4,13 +4,13 @@
 
 use super::bounds::{fit_budget, object_box, pixel_footprint, visual_hull};
 use super::colour_net::{MAX_HIDDEN, MAX_INPUTS};
-use super::layout::SpaceSetup;
 use super::model::{Field, FieldConfig, MAX_CHANNELS};
 use super::rays::RaySet;
-use super::space::Space;
 use super::train::{stage_dims, StepStats, TrainConfig, Trainer};
 use super::view::View;
 use crate::error::Result;
+use crate::space::layout::SpaceSetup;
+use crate::space::Space;
 use glam::Vec3;
 use serde::Serialize;
 use std::time::Instant;
@@ -72,9 +72,6 @@ pub struct SetupConfig {
     /// with one layer; the second was measured on the usual model only).
     pub large_net: (usize, usize, usize),
     pub large_voxels_per_pixel: f32,
-    /// The training time the run has (seconds; None: its step count alone), which the
-    /// caller fills in: with the step count, what [`SetupConfig::large_model_passes`] reads.
-    pub time_budget: Option<f64>,
     /// Bytes for the grid and its optimiser state.
     pub memory_budget: usize,
     /// The share of `memory_budget` the first (dense) stage may take. The finest stage has 8x
@@ -121,15 +118,16 @@ impl SetupConfig {
     }
 
     /// These settings for an object trained on `views` views of `pixels` pixels in all for
-    /// `steps` steps of `batch` rays (SH colour under `net_min_views`; the large model where
-    /// the run affords [`SetupConfig::large_model_passes`]), and what colours it, for its
-    /// report.
+    /// `steps` steps of `batch` rays or `time_budget` seconds, whichever ends first (SH colour
+    /// under `net_min_views`; the large model where the run affords
+    /// [`SetupConfig::large_model_passes`]), and what colours it, for its report.
     pub fn for_views(
         &self,
         views: usize,
         pixels: usize,
         steps: usize,
         batch: usize,
+        time_budget: Option<f64>,
     ) -> (SetupConfig, String) {
         let mut s = self.clone();
         if self.net_features > 0 && views < self.net_min_views {
@@ -145,7 +143,7 @@ impl SetupConfig {
         if s.net_features > 0 {
             // The field's one SH degree is the network's view input from here on.
             s.sh_degree = s.net_sh_degree;
-            let passes = self.passes(pixels, steps, batch);
+            let passes = passes(pixels, steps, batch, time_budget);
             if passes >= self.large_model_passes {
                 (s.net_features, s.net_hidden, s.net_hidden2) = self.large_net;
                 s.voxels_per_pixel = self.large_voxels_per_pixel;
@@ -164,16 +162,6 @@ impl SetupConfig {
         }
         let why = format!("{} ({why})", s.colour());
         (s, why)
-    }
-
-    /// Passes over `pixels` that `steps` steps of `batch` rays make, or fewer if the time
-    /// budget ends first (at [`NOMINAL_RAYS_PER_SECOND`]).
-    fn passes(&self, pixels: usize, steps: usize, batch: usize) -> f64 {
-        let mut rays = steps as f64 * batch as f64;
-        if let Some(secs) = self.time_budget {
-            rays = rays.min(secs * NOMINAL_RAYS_PER_SECOND);
-        }
-        rays / pixels.max(1) as f64
     }
 
     /// What colours the field.
@@ -206,6 +194,16 @@ impl SetupConfig {
     }
 }
 
+/// Passes over `pixels` that `steps` steps of `batch` rays make, or fewer if the time budget
+/// ends first (at [`NOMINAL_RAYS_PER_SECOND`]).
+fn passes(pixels: usize, steps: usize, batch: usize, time_budget: Option<f64>) -> f64 {
+    let mut rays = steps as f64 * batch as f64;
+    if let Some(secs) = time_budget {
+        rays = rays.min(secs * NOMINAL_RAYS_PER_SECOND);
+    }
+    rays / pixels.max(1) as f64
+}
+
 impl Default for SetupConfig {
     fn default() -> Self {
         SetupConfig {
@@ -222,7 +220,6 @@ impl Default for SetupConfig {
             large_model_passes: 15.0,
             large_net: (12, 64, 0),
             large_voxels_per_pixel: 1.3,
-            time_budget: None,
             memory_budget: 1 << 30,
             first_stage_share: 0.25,
             pad: 0.02,
@@ -258,16 +255,17 @@ pub struct SetupReport {
 
 /// Build the trainer for an object's `views`: the box from its sparse `points` cut to the
 /// masks' visual hull ([`object_box`]), occupancy carved by the hull, rays that miss the box
-/// pruned.
+/// pruned. The model is sized for a run of `cfg.steps` steps or `time_budget` seconds.
 pub fn prepare(
     views: &[View],
     points: &[Vec3],
     setup: &SetupConfig,
     mut cfg: TrainConfig,
+    time_budget: Option<f64>,
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
     let pixels = views.iter().map(|v| v.rgba.len()).sum();
-    let (setup, colour) = setup.for_views(views.len(), pixels, cfg.steps, cfg.batch);
+    let (setup, colour) = setup.for_views(views.len(), pixels, cfg.steps, cfg.batch, time_budget);
     let setup = &setup;
     let (lo, hi, box_why) = object_box(views, points, setup.pad)?;
     let (footprint, why) = pixel_footprint(views, lo, hi);
@@ -673,25 +671,22 @@ mod tests {
 
     #[test]
     fn a_long_run_on_many_views_takes_the_large_model() {
-        let with_budget = |secs| SetupConfig {
-            time_budget: Some(secs),
-            ..Default::default()
-        };
-        let uncapped = super::super::fit::UNCAPPED_STEPS;
+        let setup = SetupConfig::default();
+        let uncapped = crate::fit::UNCAPPED_STEPS;
         // 300 s: ~22 passes; 60 s: ~4.5.
-        let (long, why) = with_budget(300.0).for_views(100, PIXELS, uncapped, 2048);
+        let (long, why) = setup.for_views(100, PIXELS, uncapped, 2048, Some(300.0));
         assert_eq!((long.net_features, long.net_hidden), (12, 64), "{why}");
         assert_eq!(long.voxels_per_pixel, 1.3);
         assert!(why.contains("large model"), "{why}");
         assert_eq!(long.net_hidden2, 0);
         assert!(!why.contains("one hidden layer"), "{why}");
-        let (short, why) = with_budget(60.0).for_views(100, PIXELS, uncapped, 2048);
+        let (short, why) = setup.for_views(100, PIXELS, uncapped, 2048, Some(60.0));
         assert_eq!((short.net_features, short.net_hidden), (8, 32));
         assert_eq!(short.voxels_per_pixel, 1.0);
         // Views of 200 x 200 pixels keep one layer; 800 x 800 take the second.
         assert_eq!(short.net_hidden2, 0, "{why}");
         assert!(why.contains("one hidden layer"), "{why}");
-        let (large_views, why) = with_budget(1200.0).for_views(100, 16 * PIXELS, uncapped, 2048);
+        let (large_views, why) = setup.for_views(100, 16 * PIXELS, uncapped, 2048, Some(1200.0));
         assert_eq!(
             (
                 large_views.net_features,
@@ -702,21 +697,24 @@ mod tests {
             "{why}"
         );
         // A step count caps the passes whatever the budget (20 000 steps: ~10 passes).
-        let (capped, _) = with_budget(300.0).for_views(100, PIXELS, 20_000, 2048);
+        let (capped, _) = setup.for_views(100, PIXELS, 20_000, 2048, Some(300.0));
         assert_eq!(capped.net_features, 8);
         // Without a budget the steps alone decide.
-        let (steps, _) = SetupConfig::default().for_views(100, PIXELS, 40_000, 2048);
+        let (steps, _) = SetupConfig::default().for_views(100, PIXELS, 40_000, 2048, None);
         assert_eq!(steps.net_hidden, 64);
         // Few views keep SH colour and their grid whatever the budget.
-        let (few, _) = with_budget(3000.0).for_views(30, PIXELS, uncapped, 2048);
+        let (few, _) = setup.for_views(30, PIXELS, uncapped, 2048, Some(3000.0));
         assert_eq!((few.net_features, few.voxels_per_pixel), (0, 1.0));
         // 'inf': never.
         let never = SetupConfig {
             large_model_passes: f64::INFINITY,
-            ..with_budget(3000.0)
+            ..SetupConfig::default()
         };
         assert_eq!(
-            never.for_views(100, PIXELS, uncapped, 2048).0.net_hidden,
+            never
+                .for_views(100, PIXELS, uncapped, 2048, Some(3000.0))
+                .0
+                .net_hidden,
             32
         );
     }

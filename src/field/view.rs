@@ -203,7 +203,7 @@ impl RayCamera {
     }
 }
 
-/// A pixel in the band along a segmented mask's edge ([`super::edge`]): its photo colour and
+/// A pixel in the band along a segmented mask's edge ([`crate::supervision::edge`]): its photo colour and
 /// the background estimated behind the object there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EdgePixel {
@@ -225,7 +225,7 @@ pub struct View {
     pub loss_mask: Option<Vec<bool>>,
     /// The band along the mask's edge, sorted by pixel (empty: the mask is taken as exact):
     /// these pixels' colour target is the photo over the background behind them
-    /// ([`super::edge`]).
+    /// ([`crate::supervision::edge`]).
     pub edge: Vec<EdgePixel>,
 }
 

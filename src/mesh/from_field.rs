@@ -162,7 +162,7 @@ pub fn mesh_field(
     opts: &FieldMeshOptions,
     up: Option<DVec3>,
 ) -> Result<(Mesh, FieldMeshReport)> {
-    if field.space != crate::field::Space::Box {
+    if field.space != crate::space::Space::Box {
         return Err(Error::invalid(format!(
             "this is a scene field in {} space: meshes are made from object fields (box space)",
             field.space.name()

@@ -1,13 +1,14 @@
 //! Meshes out of object fields: marching cubes, cleanup (welded by construction, small pieces
 //! removed, normals), and writers for glTF binary, PLY and OBJ.
 
-pub mod checks;
+pub mod chamfer;
 pub mod fill;
 pub mod frame;
 pub mod from_field;
 pub mod gltf;
 pub mod io;
 pub mod marching;
+pub mod mesh_checks;
 mod tables;
 
 use glam::{DMat4, DVec3};

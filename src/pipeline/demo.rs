@@ -5,8 +5,8 @@
 use super::extract::{extract, object_masks_dir, write_report, ExtractOptions, ExtractReport};
 use crate::demo::{read_truth, write_demo_scene, DemoOptions, DemoSummary, ObjectTruth};
 use crate::error::{Error, Result};
-use crate::eval::chamfer::chamfer_distance;
 use crate::field::{eval::evaluate, load_views, MaskSource, RenderOptions};
+use crate::mesh::chamfer::chamfer_distance;
 use crate::sam::Segmenter;
 use crate::scene::io::{mask_file, read_mask};
 use crate::scene::Scene;

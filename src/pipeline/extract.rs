@@ -15,14 +15,15 @@
 //! RUN/<object>/turntable/         frame_NNN.png, and turntable.gif beside it
 //! ```
 
-use super::checks::{check_views, field_warnings, mesh_warnings};
 use crate::error::{Error, Result};
-use crate::field::checks::HeldOutCheck;
 use crate::field::holdout::is_held_out;
-use crate::field::{fit_scene, model_notes, FieldKind, FitOptions, MaskSource, TrainReport};
+use crate::field::MaskSource;
+use crate::fit::object_checks::HeldOutCheck;
+use crate::fit::{fit_object, model_notes, FieldKind, FitOptions, TrainReport};
 use crate::mesh::frame::GltfFrame;
 use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
 use crate::mesh::{gltf::write_glbs, io::write_mesh, Mesh};
+use crate::pipeline::extract_checks::{check_views, field_warnings, mesh_warnings};
 use crate::render::{write_turntable, TurntableOptions};
 use crate::sam::Segmenter;
 use crate::scene::Scene;
@@ -50,7 +51,7 @@ pub struct ExtractOptions {
     /// `check_views` back instead).
     pub hold_out_every: usize,
     /// Without `hold_out_every`: at most this many ok views kept out of training to check the
-    /// field on ([`super::checks::check_views`]).
+    /// field on ([`crate::pipeline::extract_checks::check_views`]).
     pub check_views: usize,
 }
 
@@ -60,7 +61,7 @@ impl Default for ExtractOptions {
             propagation: PropagationOptions::default(),
             fit: FitOptions {
                 time_budget: Some(120.0),
-                depth: crate::field::DepthMode::Sparse,
+                depth: crate::supervision::DepthMode::Sparse,
                 ..Default::default()
             },
             mesh: FieldMeshOptions::default(),
@@ -247,7 +248,7 @@ fn extract_object(
     };
     let masks = MaskSource::Images(Arc::new(obj.views.iter().map(|v| v.mask.clone()).collect()));
     progress.begin(&format!("train {}", obj.name), fit.steps as u64);
-    let fitted = fit_scene(scene, &masks, &fit, None, &mut |s| {
+    let fitted = fit_object(scene, &masks, &fit, None, &mut |s| {
         progress.advance(s.step as u64, s.detail())
     })?;
     progress.end();

@@ -3,12 +3,13 @@
 //! scene field trained with the reverse alpha, its hole filled) and [`demo`] (the demo scene,
 //! extracted and scored against its truth).
 
-pub mod checks;
 pub mod demo;
-pub mod demo_edit;
+pub mod edit_fields;
 pub mod extract;
+pub mod extract_checks;
 pub mod remove;
 pub mod render_edit;
+pub mod train;
 
 pub use extract::{extract, ExtractOptions, ExtractReport};
 pub use remove::{remove, RemoveOptions, RemoveReport};

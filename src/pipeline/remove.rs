@@ -2,7 +2,7 @@
 //! alpha: every pixel is a colour target except under the removed objects' masks (from an
 //! `objnerf segment` run, dilated), so what they hid in one view is learnt from the views that
 //! saw it. Part of the hole no view saw (the ground under an object): after most of the training
-//! it is found ([`crate::field::hole`]), given smooth colour and depth targets from around it,
+//! it is found ([`crate::removal::hole`]), given smooth colour and depth targets from around it,
 //! and training goes on with them.
 //!
 //! Layout of the output folder (written under a temporary name, renamed into place at the end):
@@ -15,16 +15,17 @@
 //! ```
 
 use crate::error::{Error, Result};
+use crate::field::eval::render_all;
 use crate::field::eval::{psnr, Rendered};
-use crate::field::holdout::is_held_out;
-use crate::field::hole::{
-    fill_unseen, find_unseen, render_all, reopen_filled_surface, see_through_check, HoleFill,
-    ViewHole,
-};
-use crate::field::removed::{clear_removed_volume, empty_air_in_holes};
-use crate::field::scene_checks::{check_scene_fit, measure_scene_fit};
+use crate::field::holdout::held_out_views;
 use crate::field::session::StopRule;
-use crate::field::{model_notes, FieldKind, RenderOptions, SceneFit, SceneFitOptions, TrainReport};
+use crate::field::RenderOptions;
+use crate::fit::scene_checks::{check_scene_fit, measure_scene_fit};
+use crate::fit::{model_notes, FieldKind, SceneFit, SceneFitOptions, TrainReport};
+use crate::removal::hole::{
+    fill_unseen, find_unseen, reopen_filled_surface, see_through_check, HoleFill, ViewHole,
+};
+use crate::removal::removed::{clear_removed_volume, empty_air_in_holes};
 use crate::scene::io::read_mask;
 use crate::scene::Scene;
 use crate::segment::saved::SegmentRun;
@@ -43,7 +44,7 @@ pub struct RemoveOptions {
     pub objects: Vec<String>,
     /// The scene field's training (its `removed` masks and `exclude_views` are filled in here).
     pub field: SceneFitOptions,
-    /// Hold out every n-th view from training, for scoring ([`is_held_out`]; 0: none).
+    /// Hold out every n-th view from training, for scoring ([`crate::field::holdout::is_held_out`]; 0: none).
     pub hold_out_every: usize,
     /// Fill the part of the hole no view saw (see the module notes).
     pub fill: HoleFill,
@@ -97,13 +98,13 @@ pub struct RemoveReport {
     /// Pixels given fill targets (0 without the fill).
     pub filled_px: usize,
     /// Of those, the pixels whose colour continues a repeating pattern around the hole
-    /// ([`crate::field::pattern`]); the rest are filled smooth.
+    /// ([`crate::removal::pattern`]); the rest are filled smooth.
     pub patterned_px: usize,
     /// Cells occupied again where the filled pixels' surface lies
-    /// ([`crate::field::hole::reopen_filled_surface`]; carving may have released them).
+    /// ([`crate::removal::hole::reopen_filled_surface`]; carving may have released them).
     pub reopened_cells: usize,
     /// Cells of the objects' volume emptied after training: the air in front of the surfaces
-    /// their holes show ([`crate::field::removed::empty_air_in_holes`]).
+    /// their holes show ([`crate::removal::removed::empty_air_in_holes`]).
     pub air_cells: usize,
     /// Per view (every view of the scene): the hole and the part of it no training view saw.
     pub holes: Vec<ViewHole>,
@@ -142,13 +143,7 @@ pub fn remove(
     let run = SegmentRun::open(segment_dir)?;
     check_same_views(scene, &run)?;
     let removed = removed_masks(scene, &run, &opts.objects)?;
-    let held_out: Vec<String> = scene
-        .images
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| is_held_out(*i, opts.hold_out_every))
-        .map(|(_, im)| im.name.clone())
-        .collect();
+    let held_out = held_out_views(scene, opts.hold_out_every);
     let mut field_opts = opts.field.clone();
     field_opts.exclude_points = removed_points(scene, &removed);
     field_opts.removed = Some(Arc::new(removed.clone()));
@@ -157,6 +152,7 @@ pub fn remove(
     let dest = AtomicDir::new(out, opts.overwrite)?;
     let root = dest.path().to_path_buf();
     let mut fit = SceneFit::new(scene, &field_opts)?;
+    progress.note(&format!("space: {}", fit.space_choice()));
     let t_load = t0.elapsed().as_secs_f64();
 
     let fill = train_and_fill(&mut fit, &field_opts, opts, progress);
@@ -457,7 +453,7 @@ fn set_holes(
 ) {
     for (v, m) in views.iter_mut().zip(removed) {
         if let Some(m) = m {
-            v.loss_mask = Some(crate::field::fit::loss_mask(
+            v.loss_mask = Some(crate::supervision::loss_mask(
                 m,
                 opts.dilate_px,
                 opts.fit.downscale,

@@ -10,7 +10,7 @@ use crate::edit::{load_edit, EditFile, LoadedBackground, LoadedEdit};
 use crate::error::{Error, Result};
 use crate::field::{RayCamera, RenderOptions};
 use crate::render::composite::{render_frame, Composite, Frame};
-use crate::render::frames::{write_frame, write_video, FrameImages, Passes};
+use crate::render::frame_files::{write_frame, write_video, FrameImages, Passes};
 use crate::scene::camera_path::{CameraPath, Orbit, PathFrame};
 use crate::scene::io::DepthMap;
 use crate::scene::Scene;
@@ -91,7 +91,7 @@ pub fn default_orbit(edit: &LoadedEdit, views: usize, size: (u32, u32), fps: f64
         hi = hi.max(b.1);
     }
     if let (false, LoadedBackground::Field(m)) = (lo.is_finite(), &edit.background) {
-        if m.field.space == crate::field::Space::Box {
+        if m.field.space == crate::space::Space::Box {
             (lo, hi) = (m.field.box_min.as_dvec3(), m.field.box_max.as_dvec3());
         }
     }

@@ -3,7 +3,7 @@
 //!
 //! Each ray is carried into every field's own frame (the inverse of its placement: a similarity,
 //! so the ray stays straight and distances scale by one factor) and marched there by the
-//! single-field marcher ([`crate::field::render::forward`]): clipped to the field's box, empty
+//! single-field marcher ([`crate::field::march::forward`]): clipped to the field's box, empty
 //! bricks skipped, its own early termination. The samples of all fields are then merged in
 //! order of distance along the world ray and composited together: densities add (each sample's
 //! opacity multiplies the transmittance of everything behind it) and where fields overlap their
@@ -20,7 +20,7 @@
 use crate::edit::recolour::PreparedRecolour;
 use crate::edit::{LoadedBackground, LoadedEdit, Similarity};
 use crate::field::eval::{gray8, rgb8};
-use crate::field::render::{forward, Sample};
+use crate::field::march::{forward, Sample};
 use crate::field::{Field, RayCamera, RenderOptions};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
@@ -301,7 +301,7 @@ mod tests {
             let o = Vec3::new(-3.0, 0.04 * i as f32 - 1.0, 0.3);
             let d = Vec3::new(1.0, 0.01 * (i % 7) as f32, -0.1).normalize();
             let a = render_ray(&c, o, d, &mut s);
-            let b = crate::field::render::render_ray(&f, &opts(), o, d, bg, &mut scratch);
+            let b = crate::field::march::render_ray(&f, &opts(), o, d, bg, &mut scratch);
             assert_eq!(a.rgb, b.rgb, "ray {i}");
             assert_eq!(a.alpha, b.alpha, "ray {i}");
         }

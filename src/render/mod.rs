@@ -3,7 +3,7 @@
 //! ([`composite`]).
 
 pub mod composite;
-pub mod frames;
+pub mod frame_files;
 pub mod turntable;
 pub mod views;
 

@@ -4,7 +4,7 @@
 
 pub mod camera;
 pub mod camera_path;
-pub mod checks;
+pub mod capture_checks;
 pub mod formats;
 pub mod frames;
 pub mod info;

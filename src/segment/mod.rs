@@ -12,10 +12,10 @@
 //!   self-checks written into its report as warnings; [`output`]: masks, point clouds, contact
 //!   sheets; [`saved`]: a saved run read back; [`evaluate`]: scores against truth masks.
 
-pub mod checks;
 pub mod distance;
 pub mod evaluate;
 pub mod hull;
+pub mod mask_checks;
 pub mod output;
 pub mod propagate;
 pub mod regions;

@@ -1,15 +1,15 @@
 //! `objnerf segment` as a library call: one or more objects from clicks in one view, propagated
 //! to every view; writes masks, the segmented sparse clouds, contact sheets and report.json.
 
-use super::checks::check_segmentation;
 use super::output::{write_contact_sheet, write_object};
 use super::propagate::{propagate_objects, require_tracks, require_view_tracks};
 use super::sam_views::SamViews;
 use super::types::{ObjectPrompt, ObjectSegmentation, PropagationOptions, ViewResult, ViewStatus};
 use crate::error::{Error, Result};
 use crate::sam::Segmenter;
-use crate::scene::checks::{check_object_visibility, check_scene};
+use crate::scene::capture_checks::{check_object_visibility, check_scene};
 use crate::scene::Scene;
+use crate::segment::mask_checks::check_segmentation;
 use crate::util::{AtomicDir, Progress, Warning};
 use serde::Serialize;
 use std::path::Path;

@@ -13,7 +13,6 @@ pub mod machine;
 pub mod mask;
 pub mod mem;
 pub mod paths;
-pub mod periods;
 pub mod progress;
 pub mod rng;
 pub mod stats;

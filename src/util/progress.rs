@@ -1,5 +1,5 @@
 //! Progress of long work: the library reports it through [`Progress`], and whoever listens draws
-//! it (the command line's bars, `crate::cli::progress`). Library code never draws or prints.
+//! it (the command line's bars, `crate::cli::progress_bars`). Library code never draws or prints.
 
 /// What the step just finished was about, for the listener to show.
 #[derive(Clone, Copy, Debug)]
@@ -23,6 +23,9 @@ pub trait Progress: Sync {
     fn advance(&self, _done: u64, _detail: Detail) {}
     /// The current stage is over.
     fn end(&self) {}
+    /// A line the user should read now rather than in the final report (e.g. the space a scene
+    /// field chose, and why, before it trains).
+    fn note(&self, _line: &str) {}
 }
 
 /// Reports nothing.

@@ -5,9 +5,9 @@
 //! floors below say which results count as good.
 
 use crate::error::Result;
-use crate::eval::chamfer::chamfer_distance;
-use crate::field::checks::measure_held_out;
 use crate::field::{load_views, Field, MaskSource};
+use crate::fit::object_checks::measure_held_out;
+use crate::mesh::chamfer::chamfer_distance;
 use crate::mesh::Mesh;
 use crate::scene::io::{mask_file, read_mask};
 use crate::scene::Scene;

@@ -179,7 +179,7 @@ impl Grid {
     }
 
     /// The cell whose base vertex has linear index `base` (x fastest over the vertex grid, as
-    /// [`super::render::Sample::base`] records it).
+    /// [`crate::field::march::Sample::base`] records it).
     #[inline]
     pub fn cell_of_base(&self, base: usize) -> [usize; 3] {
         let d = self.dims;

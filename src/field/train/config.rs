@@ -1,6 +1,6 @@
 //! What a training run is told (`TrainConfig`) and what each step reports (`StepStats`).
 
-use super::super::render::RenderOptions;
+use crate::field::march::RenderOptions;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -58,7 +58,7 @@ pub struct TrainConfig {
     pub focus_batch: usize,
     /// Weight of the distortion loss ([`distortion`], distances in finest voxels) per ray.
     ///
-    /// [`distortion`]: crate::field::render::distortion
+    /// [`distortion`]: crate::field::march::distortion
     pub distortion_weight: f32,
     /// Weight of the sparsity loss per ray (the sum of its kept samples' alphas,
     /// [`RayGrad::alpha_each`]): of two ways to explain a view, the one with less matter seen.
@@ -67,13 +67,13 @@ pub struct TrainConfig {
     /// up to 0.7 dB held out (examples/results/field.md, "The mug's membrane" and "The sphere
     /// and box meshes hollow again").
     ///
-    /// [`RayGrad::alpha_each`]: crate::field::render::RayGrad::alpha_each
+    /// [`RayGrad::alpha_each`]: crate::field::march::RayGrad::alpha_each
     pub sparsity_weight: f32,
     /// Weight of the free-space loss ([`free_space`]) on rays with a depth target: what lies
     /// between a camera and a point it sees is empty (DS-NeRF's depth prior, as a bound). It
     /// clears the floaters and the faint matter in front of surfaces that colour alone leaves.
     ///
-    /// [`free_space`]: crate::field::render::free_space
+    /// [`free_space`]: crate::field::march::free_space
     pub free_space_weight: f32,
     /// How far in front of the target (finest voxels) space is taken as free: the targets are
     /// triangulated points, a voxel or two off.

@@ -3,11 +3,11 @@
 
 use super::super::grid::BRICK;
 use super::super::model::Field;
-use super::super::render::{
-    backward, distortion, forward_seen_from, free_space, RayGrad, RayOut, Sample,
-};
 use super::super::view::{EdgePixel, View};
 use super::config::TrainConfig;
+use crate::field::march::{
+    backward, distortion, forward_seen_from, free_space, RayGrad, RayOut, Sample,
+};
 use crate::util::Rng;
 
 /// Rays a chunk: the unit of work, and of the order in which gradients are summed.

@@ -67,7 +67,7 @@ pub struct SfmReport {
     pub model_dir: PathBuf,
     /// Image pairs matched when they were chosen from the poses (triangulation).
     pub matched_pairs: Option<usize>,
-    /// The self-checks of the model COLMAP made ([`crate::scene::checks`]).
+    /// The self-checks of the model COLMAP made ([`crate::scene::capture_checks`]).
     pub warnings: Vec<crate::util::Warning>,
 }
 
@@ -240,10 +240,10 @@ fn finish(
     model.format = SourceFormat::ColmapBinary;
     let obs: usize = model.points.iter().map(|p| p.track.len()).sum();
     let mut warnings: Vec<_> =
-        crate::scene::checks::check_registration(num_images, model.images.len())
+        crate::scene::capture_checks::check_registration(num_images, model.images.len())
             .into_iter()
             .collect();
-    warnings.extend(crate::scene::checks::check_scene(&model));
+    warnings.extend(crate::scene::capture_checks::check_scene(&model));
     Ok(SfmReport {
         mode,
         num_images,

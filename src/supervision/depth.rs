@@ -2,8 +2,8 @@
 //! style) and dense (depth images). Both become per-pixel distances along the unit ray on the
 //! training views, kept only inside the object's mask: the field holds the object alone.
 
-use super::view::View;
 use crate::error::{Error, Result};
+use crate::field::view::View;
 use crate::scene::Scene;
 use rayon::prelude::*;
 

@@ -1,51 +1,28 @@
 //! Training an object's field on a scene, as one call: views and masks in, a trained
 //! [`Trainer`] and a report out. `objnerf train` and `objnerf extract` both use it; saving the
-//! model ([`super::io::save`]) is the caller's choice.
+//! model ([`crate::field::io::save`]) is the caller's choice.
 
-use super::bounds::points_in_masks;
-use super::depth::{add_dense_depth, add_sparse_depth, spread_sparse_depth};
-use super::edge::add_edge_bands;
-use super::io::Model;
-use super::layout::{choose_space, SpaceChoice};
-use super::rays::RaySet;
-use super::scene_checks::{check_scene_fit, measure_scene_fit, SceneFitCheck};
-use super::session::{prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule};
-use super::stereo::{add_stereo_depth, StereoOptions};
-use super::train::{StepStats, TrainConfig, Trainer};
-use super::view::{load_views, MaskSource, View};
+pub mod object_checks;
+pub mod scene_checks;
+
 use crate::error::{Error, Result};
+use crate::field::bounds::points_in_masks;
+use crate::field::io::Model;
+use crate::field::rays::RaySet;
+use crate::field::session::{
+    prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule,
+};
+use crate::field::train::{StepStats, TrainConfig, Trainer};
+use crate::field::view::{load_views, MaskSource, View};
+use crate::fit::scene_checks::{check_scene_fit, measure_scene_fit, SceneFitCheck};
 use crate::scene::Scene;
-use crate::util::choice::named_choices;
-use crate::util::mask::{dilate, is_object};
+use crate::space::layout::{choose_space, SpaceChoice};
+use crate::supervision::edge::add_edge_bands;
+use crate::supervision::{add_depth_targets, loss_mask, DepthMode};
 use crate::util::warnings::Warning;
 use image::GrayImage;
 use serde::Serialize;
 use std::sync::Arc;
-
-/// Depth supervision.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DepthMode {
-    None,
-    /// The depth of the object's sparse 3D points in each view (DS-NeRF style).
-    Sparse,
-    /// The scene's depth images.
-    Dense,
-    /// The sparse points' depths, spread over each view where nearby points agree on a
-    /// surface ([`super::depth::spread_sparse_depth`]).
-    Spread,
-    /// The sparse points' depths, and plane-sweep stereo between neighbouring photos where it
-    /// is clear and consistent ([`super::stereo`]).
-    Stereo,
-}
-
-named_choices!(DepthMode, "depth", {
-    None => "none",
-    Sparse => "sparse",
-    Dense => "dense",
-    Spread => "spread",
-    Stereo => "stereo",
-});
 
 /// How to train a field on a scene.
 #[derive(Clone, Debug)]
@@ -65,7 +42,7 @@ pub struct FitOptions {
     /// Views left out of training (e.g. the ones segmentation found obstructed, or held out).
     pub exclude_views: Vec<String>,
     /// Pixels either side of a segmented mask's edge whose colour target is the photo over the
-    /// background behind the object ([`super::edge`]; 0: masks taken as exact). Images' own
+    /// background behind the object ([`crate::supervision::edge`]; 0: masks taken as exact). Images' own
     /// alpha is always exact.
     pub mask_band: u32,
 }
@@ -128,7 +105,7 @@ pub struct TrainReport {
     pub depth_targets: usize,
     /// The finest stage's grid: resolution, bricks, bytes per brick and why (None when training
     /// ended before it).
-    pub finest: Option<super::train::FinestStage>,
+    pub finest: Option<crate::field::train::FinestStage>,
     /// A scene field's fit to its own training views ([`SceneFit::check_fit`]; None for an
     /// object field, whose checks hold views back).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -146,7 +123,7 @@ pub struct Fitted {
 
 /// Train a field on `scene`'s views with `masks` (or continue `resume`); `progress` sees every
 /// step.
-pub fn fit_scene(
+pub fn fit_object(
     scene: &Scene,
     masks: &MaskSource,
     opts: &FitOptions,
@@ -176,11 +153,7 @@ pub fn fit_scene(
     let (mut trainer, rays, setup) = match resume {
         None => {
             let points = points_in_masks(scene, &views, opts.downscale);
-            let setup = SetupConfig {
-                time_budget: opts.time_budget,
-                ..opts.setup.clone()
-            };
-            let (t, r, s) = prepare(&views, &points, &setup, cfg)?;
+            let (t, r, s) = prepare(&views, &points, &opts.setup, cfg, opts.time_budget)?;
             (t, r, Some(s))
         }
         Some(m) => {
@@ -222,28 +195,6 @@ fn depth_and_training_views(
         )));
     }
     Ok(targets)
-}
-
-/// Set the depth targets `mode` asks for on `views` (the scene's images in order, downscaled
-/// by `downscale`); returns how many pixels have one.
-pub fn add_depth_targets(
-    views: &mut [View],
-    scene: &Scene,
-    mode: DepthMode,
-    downscale: u32,
-) -> Result<usize> {
-    Ok(match mode {
-        DepthMode::None => 0,
-        DepthMode::Sparse => add_sparse_depth(views, scene, downscale)?,
-        DepthMode::Dense => add_dense_depth(views, scene, downscale)?,
-        DepthMode::Spread => {
-            add_sparse_depth(views, scene, downscale)? + spread_sparse_depth(views)
-        }
-        DepthMode::Stereo => {
-            add_sparse_depth(views, scene, downscale)?
-                + add_stereo_depth(views, scene, &StereoOptions::default())
-        }
-    })
 }
 
 /// How to train a scene field: the whole scene, or the scene without some objects (their
@@ -317,20 +268,6 @@ impl Default for SceneFitOptions {
 /// Training views a whole-scene field is checked on after training ([`SceneFit::check_fit`]).
 pub const SCENE_FIT_VIEWS: usize = 8;
 
-/// Train a scene field on every view of `scene` (less `opts.fit.exclude_views`): RGB is the
-/// target everywhere except under the removed objects' dilated masks. Returns the trained field
-/// with the space setup's explanation in its report.
-pub fn fit_scene_field(
-    scene: &Scene,
-    opts: &SceneFitOptions,
-    progress: &mut dyn FnMut(&StepStats),
-) -> Result<Fitted> {
-    let mut fit = SceneFit::new(scene, opts)?;
-    fit.train(&opts.fit.stop_rule(), progress);
-    fit.check_fit(SCENE_FIT_VIEWS);
-    Ok(fit.finish())
-}
-
 /// A scene field being trained, with its views and rays, for callers that train in phases
 /// (removal: train, find the hole, fill it, train on).
 pub struct SceneFit {
@@ -338,6 +275,8 @@ pub struct SceneFit {
     /// The training views (removed objects' pixels marked in each `loss_mask`).
     pub views: Vec<View>,
     pub rays: RaySet,
+    /// The space chosen from the capture, and why.
+    space_choice: String,
     setup: SetupReport,
     depth_targets: usize,
     runs: Vec<RunSummary>,
@@ -395,12 +334,18 @@ impl SceneFit {
             trainer,
             views,
             rays,
+            space_choice: format!("{} ({})", space.space.name(), space.why),
             setup,
             depth_targets,
             runs: Vec::new(),
             fit_check: None,
             warnings: Vec::new(),
         })
+    }
+
+    /// The space the field lives in, as chosen from the capture's layout, and why.
+    pub fn space_choice(&self) -> &str {
+        &self.space_choice
     }
 
     /// Train until `stop` says so.
@@ -421,9 +366,9 @@ impl SceneFit {
         let n = self.views.len();
         let step = n.div_ceil(max_views.max(1)).max(1);
         let views: Vec<View> = self.views.iter().step_by(step).cloned().collect();
-        let renders = super::hole::render_all(
+        let renders = crate::field::eval::render_all(
             &self.trainer.field,
-            &super::render::RenderOptions::default(),
+            &crate::field::march::RenderOptions::default(),
             &views,
         );
         let c = measure_scene_fit(&views, &renders);
@@ -459,21 +404,6 @@ impl SceneFit {
         };
         Fitted { trainer: t, report }
     }
-}
-
-/// Which pixels of a view (downscaled by `factor` to `w` x `h`) carry a loss: those whose whole
-/// block lies outside the removed mask grown by `dilate_px`.
-pub fn loss_mask(removed: &GrayImage, dilate_px: u32, factor: u32, w: u32, h: u32) -> Vec<bool> {
-    let grown = dilate(removed, dilate_px);
-    let f = factor.max(1);
-    let mut keep = vec![true; (w * h) as usize];
-    for (x, y, p) in grown.enumerate_pixels() {
-        let (dx, dy) = (x / f, y / f);
-        if is_object(p[0]) && dx < w && dy < h {
-            keep[(dy * w + dx) as usize] = false;
-        }
-    }
-    keep
 }
 
 /// What a model file holds: one object's field, or a field of the scene (whole, or with objects

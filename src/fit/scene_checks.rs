@@ -2,8 +2,8 @@
 //! (a field that does not is blurred, or full of floaters, in every render made from it), and
 //! whether it renders them see-through where they saw a surface.
 
-use super::eval::{truth_on, Rendered};
-use super::view::View;
+use crate::field::eval::{truth_on, Rendered};
+use crate::field::view::View;
 use crate::util::warnings::{Stage, Warning};
 use serde::Serialize;
 

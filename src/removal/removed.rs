@@ -9,9 +9,9 @@
 //! front of the surfaces the holes show.
 
 use super::hole::hole_of;
-use super::model::Field;
-use super::render::{forward, RenderOptions};
-use super::view::View;
+use crate::field::march::{forward, RenderOptions};
+use crate::field::model::Field;
+use crate::field::view::View;
 use rayon::prelude::*;
 
 /// A cell lies in the removed objects' volume when at least this fraction of the views that see
@@ -64,7 +64,7 @@ fn set_cells_density(field: &mut Field, cells: &[[usize; 3]], logit: f32, only_l
             let v = field
                 .grid
                 .vertex_slot(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2));
-            if v == super::grid::NONE {
+            if v == crate::field::grid::NONE {
                 continue;
             }
             let v = v as usize;

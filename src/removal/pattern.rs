@@ -18,11 +18,11 @@
 //! dilated by 4 px, harmonic 19.4 dB, this 21.2; with 2 px dilation 20.9 and 23.1. Trained
 //! (6000 steps, 4 px): 18.5 -> 19.7 dB (`examples/results/scene_field.md`).
 
-use super::eval::Rendered;
-use super::view::View;
+use crate::field::eval::Rendered;
+use crate::field::view::View;
+use crate::removal::periods::periodic_shifts;
 use crate::util::inpaint::inpaint_harmonic;
 use crate::util::mask::{components, dilate_bits, NO_COMPONENT};
-use crate::util::periods::periodic_shifts;
 use glam::{DMat3, DVec3, Vec2, Vec3};
 
 /// A pixel lies on the fitted plane when its rendered depth is within this fraction of the

@@ -4,11 +4,11 @@
 //! training diverged or was cut short by its time budget.
 //! A scene field's checks are in [`super::scene_checks`].
 
-use super::eval::{psnr, render_view, truth_on};
-use super::fit::TrainReport;
-use super::model::Field;
-use super::render::RenderOptions;
-use super::view::View;
+use crate::field::eval::{psnr, render_view, truth_on};
+use crate::field::march::RenderOptions;
+use crate::field::model::Field;
+use crate::field::view::View;
+use crate::fit::TrainReport;
 use crate::util::mask::{dilate, is_object};
 use crate::util::warnings::{Stage, Warning};
 use image::GrayImage;

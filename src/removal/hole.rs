@@ -15,12 +15,11 @@
 //! [`reopen_filled_surface`] gives the filled pixels that would render see-through (their cells
 //! carved away) cells to grow in.
 
-use super::eval::{render_view, Rendered};
-use super::model::Field;
 use super::pattern::continue_pattern;
-use super::render::RenderOptions;
-use super::train::Trainer;
-use super::view::View;
+use crate::field::eval::Rendered;
+use crate::field::model::Field;
+use crate::field::train::Trainer;
+use crate::field::view::View;
 use crate::util::choice::named_choices;
 use crate::util::inpaint::inpaint_harmonic;
 use crate::util::{Stage, Warning};
@@ -55,7 +54,7 @@ pub struct Holes {
 }
 
 /// A view's hole: the pixels that carry no loss.
-pub(super) fn hole_of(v: &View) -> Vec<bool> {
+pub(crate) fn hole_of(v: &View) -> Vec<bool> {
     match &v.loss_mask {
         Some(m) => m.iter().map(|&k| !k).collect(),
         None => vec![false; (v.width * v.height) as usize],
@@ -101,14 +100,6 @@ pub fn see_through_check(views: &[View], renders: &[Rendered]) -> Option<Warning
             ),
         )
     })
-}
-
-/// Render every view of `views` (colour on white, alpha, depth).
-pub fn render_all(field: &Field, opt: &RenderOptions, views: &[View]) -> Vec<Rendered> {
-    views
-        .iter()
-        .map(|v| render_view(field, opt, v, [1.0; 3]))
-        .collect()
 }
 
 /// Find, in every view of `views` (holes marked by their loss masks; `renders` of each from the

@@ -20,7 +20,7 @@ use super::grid::BRICK;
 use super::live::BLOCK;
 use super::model::{Field, RayShading, MAX_CHANNELS};
 use super::sh::{sh_basis, SH_TERMS};
-use super::space::{ContractedSteps, LineDepth, RayPath};
+use crate::space::{ContractedSteps, LineDepth, RayPath};
 use glam::Vec3;
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -94,7 +94,7 @@ pub struct RayOut {
 
 /// March one ray (unit world direction `d`), composite on `bg`, and record the kept samples.
 /// `jitter` in [0, 1) offsets the first sample by that fraction of a step. The samples' `t` is
-/// the distance along the world ray, in every [`Space`](super::space::Space).
+/// the distance along the world ray, in every [`Space`](crate::space::Space).
 pub fn forward(
     f: &Field,
     opt: &RenderOptions,

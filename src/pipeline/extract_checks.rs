@@ -1,11 +1,12 @@
 //! `extract`'s self-checks of each object's field and mesh: which ok views are kept out of
-//! training to check the field on, and the checks themselves (see [`crate::field::checks`] and
-//! [`crate::mesh::checks`]).
+//! training to check the field on, and the checks themselves (see [`crate::fit::object_checks`] and
+//! [`crate::mesh::mesh_checks`]).
 
 use crate::error::Result;
-use crate::field::checks::{check_field, measure_held_out, HeldOutCheck};
-use crate::field::{load_views, Field, MaskSource, TrainReport};
-use crate::mesh::checks::check_mesh;
+use crate::field::{load_views, Field, MaskSource};
+use crate::fit::object_checks::{check_field, measure_held_out, HeldOutCheck};
+use crate::fit::TrainReport;
+use crate::mesh::mesh_checks::check_mesh;
 use crate::mesh::Mesh;
 use crate::scene::Scene;
 use crate::segment::{ObjectSegmentation, ViewStatus};

@@ -13,9 +13,9 @@
 //!   far background (Mip-NeRF 360). Contraction about the focus, the inner ball holding the
 //!   cameras.
 
-use super::space::{NdcSpace, Space};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
+use crate::space::{NdcSpace, Space};
 use crate::util::choice::named_choices;
 use crate::util::stats::quantile;
 use glam::{DMat3, DVec3, Vec3};
@@ -389,7 +389,7 @@ fn ndc_extent(scene: &Scene, space: &Space) -> Result<(Vec3, Vec3)> {
                 .pose
                 .camera_to_world_dir(cam.unproject(glam::DVec2::new(u, v)))
                 .normalize();
-            if let Some(super::space::RayPath::Line { o, d, s0, s1, .. }) =
+            if let Some(crate::space::RayPath::Line { o, d, s0, s1, .. }) =
                 space.ray_path(im.pose.center().as_vec3(), d.as_vec3(), -big, big)
             {
                 for s in [s0, s1] {

@@ -2,8 +2,8 @@
 //! colour threshold across steps.
 
 use super::super::model::FieldConfig;
-use super::super::space::ray_box;
 use super::*;
+use crate::space::ray_box;
 use crate::util::Rng;
 
 fn random_field(seed: u64, degree: u32) -> Field {

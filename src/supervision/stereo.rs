@@ -8,7 +8,7 @@
 //! is kept only where the agreement is clear and two neighbours' own depth maps put the same
 //! surface there (geometric consistency), as MVS pipelines (COLMAP, MVSNet's filtering) do.
 
-use super::view::View;
+use crate::field::view::View;
 use crate::scene::Scene;
 use glam::Vec3;
 use rayon::prelude::*;

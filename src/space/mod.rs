@@ -17,6 +17,10 @@
 //! Densities are per unit of space length (in finest voxels), so a sample's alpha depends only on
 //! the step in space coordinates; `t`, the distance along the world ray, is kept for depth.
 
+pub mod layout;
+
+pub use layout::SpaceChoice;
+
 use glam::{Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 

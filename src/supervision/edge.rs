@@ -8,8 +8,8 @@
 //! there only as the usual weak alpha term. Dropping that term too (tried) let the field grow a
 //! floor-coloured fringe wherever the floor's texture departs from the smooth estimate.
 
-use super::view::{downscale_premultiplied, EdgePixel, View};
 use crate::error::{Error, Result};
+use crate::field::view::{downscale_premultiplied, EdgePixel, View};
 use crate::scene::io::read_image;
 use crate::scene::Scene;
 use crate::util::inpaint::inpaint_harmonic;

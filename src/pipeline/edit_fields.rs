@@ -99,7 +99,7 @@ pub fn ensure_edit_fields(dir: &Path, log: &mut dyn FnMut(String)) -> Result<Edi
         // The demo's exact depth maps (the removed objects' pixels carry none). The memory
         // budget is `objnerf remove`'s default (1 GiB): at 512 MiB the finest grid is 1.3x
         // coarser and every edit loses ~0.4 dB full-frame.
-        opts.field.fit.depth = crate::field::DepthMode::Dense;
+        opts.field.fit.depth = crate::supervision::DepthMode::Dense;
         let scene = Scene::load(&f.scene.join("transforms.json"))?;
         let r = remove(&scene, &seg, &opts, &dir.join("removed"), &Silent)?;
         log(format!(

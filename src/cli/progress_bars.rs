@@ -51,4 +51,11 @@ impl Progress for Bars {
             b.finish_and_clear();
         }
     }
+
+    fn note(&self, line: &str) {
+        match self.bar.lock().expect("bar lock").as_ref() {
+            Some(b) => b.suspend(|| eprintln!("{line}")),
+            None => eprintln!("{line}"),
+        }
+    }
 }

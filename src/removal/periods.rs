@@ -1,6 +1,6 @@
 //! The translations that map a sampled 2D texture onto itself: the peaks of its normalised
 //! autocorrelation, fitted to the lattice of one or two periods they lie on. Used to continue a
-//! repeating pattern (tiles, planks, wallpaper) into a hole ([`crate::field::pattern`]).
+//! repeating pattern (tiles, planks, wallpaper) into a hole ([`crate::removal::pattern`]).
 
 use glam::{DVec2, Vec2};
 

@@ -19,7 +19,7 @@ use super::texture::Textures;
 use crate::edit::recolour::PreparedRecolour;
 use crate::edit::{LoadedBackground, LoadedEdit};
 use crate::error::{Error, Result};
-use crate::render::frames::{write_frame, FrameImages, Passes};
+use crate::render::frame_files::{write_frame, FrameImages, Passes};
 use crate::scene::camera_path::{CameraPath, Orbit};
 use crate::scene::io::DepthMap;
 use crate::scene::{Camera, Pose};

@@ -1,0 +1,90 @@
+//! What every command that trains a field shares on the command line: `--time-budget`, with one
+//! meaning in `train`, `extract`, `remove` and `demo`.
+
+use clap::Args;
+
+/// `--time-budget`: seconds of training, or `none` for no limit; absent, the command's default.
+#[derive(Args, Clone, Copy, Debug, Default)]
+pub struct TimeBudgetArg {
+    /// Seconds of training, or 'none' for no limit (the steps alone end it). Default: the
+    /// command's own (train: none; extract: 120 per object; remove: 300; demo: 90).
+    #[arg(long = "time-budget", value_name = "SECONDS|none", value_parser = parse_budget)]
+    time_budget: Option<Budget>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Budget {
+    Seconds(f64),
+    Unlimited,
+}
+
+fn parse_budget(s: &str) -> Result<Budget, String> {
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(Budget::Unlimited);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v.is_finite() => Ok(Budget::Seconds(v)),
+        _ => Err(format!(
+            "'{s}' is not a time budget: give seconds above 0, or 'none' for no limit"
+        )),
+    }
+}
+
+impl TimeBudgetArg {
+    /// The budget to train with: the one given, else `default` (the command's).
+    pub fn or(self, default: Option<f64>) -> Option<f64> {
+        match self.time_budget {
+            None => default,
+            Some(Budget::Unlimited) => None,
+            Some(Budget::Seconds(s)) => Some(s),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Cli, Command};
+    use clap::Parser;
+
+    /// The budget each training command resolves from `args` (after the command's required
+    /// arguments).
+    fn budget(command: &str, args: &[&str]) -> Result<Option<f64>, String> {
+        let mut argv = vec!["objnerf", command];
+        argv.extend(match command {
+            "train" => vec!["scene", "--masks", "alpha", "--out", "m.objf"],
+            "extract" => vec!["scene", "--view", "v.png", "--point", "1,2", "--out", "run"],
+            "remove" => vec!["scene", "--segment", "seg", "--object", "mug", "--out", "o"],
+            _ => vec![],
+        });
+        argv.extend(args);
+        let cli = Cli::try_parse_from(argv).map_err(|e| e.to_string())?;
+        Ok(match cli.command {
+            Command::Train(c) => c.time_budget(),
+            Command::Extract(c) => c.options().fit.time_budget,
+            Command::Remove(c) => c.options().field.fit.time_budget,
+            Command::Demo(c) => c.options().fit.time_budget,
+            _ => unreachable!("not a training command"),
+        })
+    }
+
+    const COMMANDS: [&str; 4] = ["train", "extract", "remove", "demo"];
+
+    #[test]
+    fn time_budget_means_the_same_in_every_command() {
+        for c in COMMANDS {
+            assert_eq!(budget(c, &["--time-budget", "30"]), Ok(Some(30.0)), "{c}");
+            assert_eq!(budget(c, &["--time-budget", "2.5"]), Ok(Some(2.5)), "{c}");
+            assert_eq!(budget(c, &["--time-budget", "none"]), Ok(None), "{c}");
+            for bad in ["0", "-5", "inf", "soon"] {
+                let e = budget(c, &["--time-budget", bad]).unwrap_err();
+                assert!(e.contains("not a time budget"), "{c} {bad}: {e}");
+            }
+        }
+    }
+
+    #[test]
+    fn each_command_keeps_its_default_budget() {
+        let defaults: Vec<Option<f64>> = COMMANDS.iter().map(|c| budget(c, &[]).unwrap()).collect();
+        assert_eq!(defaults, [None, Some(120.0), Some(300.0), Some(90.0)]);
+    }
+}
