@@ -10,7 +10,7 @@ mod bench;
 
 use objnerf::field::eval::evaluate;
 use objnerf::field::holdout::held_out_views;
-use objnerf::field::{load_views, MaskSource, RenderOptions, SetupConfig};
+use objnerf::field::{load_views, MaskSource, RenderOptions, SetupConfig, TrainConfig};
 use objnerf::fit::{FitOptions, SceneFit, SceneFitOptions, SCENE_FIT_VIEWS};
 use std::path::PathBuf;
 
@@ -48,20 +48,22 @@ fn main() -> objnerf::Result<()> {
             depth: env("SF_DEPTH").unwrap_or(d.fit.depth),
             ..Default::default()
         },
-        prune_after: env("SF_PRUNE_AFTER").unwrap_or(d.prune_after),
-        carve_weight: env("SF_CARVE").unwrap_or(d.carve_weight),
-        distortion_weight: env("SF_DIST").unwrap_or(d.distortion_weight),
-        prune_alpha: env("SF_PRUNE_ALPHA").unwrap_or(d.prune_alpha),
+        train: TrainConfig {
+            prune_after: env("SF_PRUNE_AFTER").unwrap_or(d.train.prune_after),
+            carve_weight: env("SF_CARVE").unwrap_or(d.train.carve_weight),
+            distortion_weight: env("SF_DIST").unwrap_or(d.train.distortion_weight),
+            prune_alpha: env("SF_PRUNE_ALPHA").unwrap_or(d.train.prune_alpha),
+            ..d.train.clone()
+        },
         ..Default::default()
     };
     // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").
     if let Ok(st) = std::env::var("SF_STAGES") {
-        opts.stages = Some(
-            st.split(',')
-                .filter_map(|p| p.split_once(':'))
-                .filter_map(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
-                .collect(),
-        );
+        opts.train.stages = st
+            .split(',')
+            .filter_map(|p| p.split_once(':'))
+            .filter_map(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+            .collect();
     }
     let cpu0 = bench::cpu_seconds();
     let t0 = std::time::Instant::now();

@@ -26,10 +26,7 @@ fn fixture() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
         let scene = tmp.path().join("demo");
         write_demo_scene(&DemoOptions::default(), &scene).unwrap();
         let mug = tmp.path().join("mug.objf");
-        let opts = DemoFieldOptions {
-            steps: 600,
-            ..Default::default()
-        };
+        let opts = DemoFieldOptions::steps(600);
         write_object_field(&scene, "mug", &opts, &mug).unwrap();
         (tmp, scene, mug)
     })

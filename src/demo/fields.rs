@@ -12,45 +12,40 @@ use crate::scene::Scene;
 use crate::supervision::DepthMode;
 use std::path::Path;
 
-/// How long to train and at which image size.
+/// How to train a demo object's field: on a step budget (no time budget, so the result does
+/// not depend on the machine's load), from the truth's exact masks and depth.
 #[derive(Clone, Debug)]
 pub struct DemoFieldOptions {
-    pub steps: usize,
-    pub seed: u64,
-    pub downscale: u32,
-    pub depth: DepthMode,
-    /// Memory for the grid and its optimiser state, MiB.
-    pub memory_mb: usize,
+    pub fit: FitOptions,
     /// Progress: called with (step, seconds, batch PSNR) every step.
     pub progress: Option<fn(usize, f64, f32)>,
+}
+
+impl DemoFieldOptions {
+    /// Train for `steps` steps, the rest as [`Default`].
+    pub fn steps(steps: usize) -> DemoFieldOptions {
+        let mut o = DemoFieldOptions::default();
+        o.fit.steps = steps;
+        o
+    }
 }
 
 impl Default for DemoFieldOptions {
     fn default() -> Self {
         DemoFieldOptions {
-            steps: 2000,
-            seed: 0,
-            downscale: 1,
-            depth: DepthMode::Dense,
-            memory_mb: 1024,
+            fit: FitOptions {
+                steps: 2000,
+                depth: DepthMode::Dense,
+                setup: crate::field::SetupConfig {
+                    memory_budget: 1024 << 20,
+                    ..Default::default()
+                },
+                // The true masks are exact.
+                mask_band: 0,
+                ..Default::default()
+            },
             progress: None,
         }
-    }
-}
-
-fn fit_options(o: &DemoFieldOptions) -> FitOptions {
-    FitOptions {
-        downscale: o.downscale,
-        depth: o.depth,
-        seed: o.seed,
-        steps: o.steps,
-        setup: crate::field::SetupConfig {
-            memory_budget: o.memory_mb << 20,
-            ..Default::default()
-        },
-        // The true masks are exact.
-        mask_band: 0,
-        ..Default::default()
     }
 }
 
@@ -85,9 +80,9 @@ pub fn write_object_field(
     check_object(scene_dir, object)?;
     let scene = load_scene(scene_dir)?;
     let masks = MaskSource::Dir(scene_dir.join("truth/masks").join(object));
-    let fit = fit_options(opts);
-    let fitted = fit_object(&scene, &masks, &fit, None, &mut |s| report(opts, s))?;
-    let notes = model_notes(FieldKind::Object, &scene, &fit, &fitted.report);
+    let fit = &opts.fit;
+    let fitted = fit_object(&scene, &masks, fit, None, &mut |s| report(opts, s))?;
+    let notes = model_notes(FieldKind::Object, &scene, fit, &fitted.report);
     save(out, &fitted.trainer.parts(IDENTITY, notes))?;
     Ok(fitted.report)
 }

@@ -216,21 +216,35 @@ pub struct SceneFitOptions {
     /// removal test's 20 000 steps 25.43 / 21.56 at 2 px, 25.27 / 22.08 at 1 (full frame 28.84,
     /// 28.65), no rim of the mug in the held-out crops.
     pub dilate_px: u32,
-    /// Fraction of the schedule before empty space is pruned (see [`TrainConfig::prune_after`]).
-    pub prune_after: f32,
-    /// Weight below which cells are carved before the grid grows
-    /// ([`TrainConfig::carve_weight`]).
-    pub carve_weight: f32,
     /// Sparse points not to seed surfaces from (indices into the scene's points): the removed
     /// objects' own.
     pub exclude_points: std::collections::HashSet<usize>,
-    /// The coarse-to-fine stages (fraction of the schedule, grid scale); None: the trainer's.
-    pub stages: Option<Vec<(f32, f32)>>,
-    /// Weight of the distortion loss ([`TrainConfig::distortion_weight`]): it gathers each
-    /// ray's weight into one interval, against floaters.
-    pub distortion_weight: f32,
-    /// Occupancy pruning threshold ([`TrainConfig::prune_alpha`]).
-    pub prune_alpha: f32,
+    /// The trainer's settings for a scene field ([`scene_train_config`]); its seed and steps
+    /// are `fit`'s.
+    pub train: TrainConfig,
+}
+
+/// The trainer's settings for a scene field, where they differ from an object's.
+pub fn scene_train_config() -> TrainConfig {
+    TrainConfig {
+        // Empty space pruned after a tenth of the schedule, cells carved below this weight
+        // before the grid grows, three coarse-to-fine stages.
+        prune_after: 0.1,
+        carve_weight: 1e-3,
+        stages: vec![(0.0, 0.25), (0.25, 0.5), (0.5, 1.0)],
+        // The distortion loss gathers each ray's weight into one interval, against floaters.
+        distortion_weight: 0.001,
+        // Air starts at alpha_init and its density falls slowly; pruning what is not yet 1%
+        // opaque per step (the trainer's default, as object fields prune) keeps the grid near
+        // the surfaces (demo at 160x120, 2000 steps: the same held-out PSNR, 24.3 against 24.0
+        // dB, in 60 instead of 113 CPU-s).
+        //
+        // The free-space loss was measured on object fields only, whose targets are
+        // triangulated points; a scene field's plane-sweep targets can be off by more than its
+        // margin, which would carve true surfaces.
+        free_space_weight: 0.0,
+        ..TrainConfig::default()
+    }
 }
 
 impl Default for SceneFitOptions {
@@ -239,7 +253,7 @@ impl Default for SceneFitOptions {
             space: SpaceChoice::Auto,
             // The sparse points' depths keep a scene's surfaces where they are: without them
             // the demo scene's held-out views fell from 23.7 to 17.8 dB at 160x120 (see
-            // ARCHITECTURE.md). Spread over the surfaces between the points they give the
+            // docs/decisions.md). Spread over the surfaces between the points they give the
             // colour rays a geometry to agree on: demo ring at 320x240, 3000 steps, 19.7 ->
             // 23.6 dB held out; forward demo 27.1 -> 29.2 dB; fox unchanged (26.8 / 26.7 dB;
             // examples/results/scene_field.md). Plane-sweep stereo between neighbouring photos
@@ -251,16 +265,8 @@ impl Default for SceneFitOptions {
             },
             removed: None,
             dilate_px: 1,
-            prune_after: 0.1,
-            carve_weight: 1e-3,
             exclude_points: Default::default(),
-            stages: Some(vec![(0.0, 0.25), (0.25, 0.5), (0.5, 1.0)]),
-            distortion_weight: 0.001,
-            // Air starts at alpha_init and its density falls slowly; pruning what is not yet
-            // 1% opaque per step keeps the grid near the surfaces (demo at 160x120, 2000 steps:
-            // the same held-out PSNR, 24.3 against 24.0 dB, in 60 instead of 113 CPU-s). Object
-            // fields prune alike.
-            prune_alpha: TrainConfig::default().prune_alpha,
+            train: scene_train_config(),
         }
     }
 }
@@ -311,16 +317,7 @@ impl SceneFit {
         let cfg = TrainConfig {
             seed: fit.seed,
             steps: fit.schedule_steps(),
-            prune_after: opts.prune_after,
-            carve_weight: opts.carve_weight,
-            stages: opts.stages.clone().unwrap_or(TrainConfig::default().stages),
-            distortion_weight: opts.distortion_weight,
-            prune_alpha: opts.prune_alpha,
-            // Measured on object fields only, whose targets are triangulated points; a scene
-            // field's plane-sweep targets can be off by more than the margin, which would carve
-            // true surfaces.
-            free_space_weight: 0.0,
-            ..Default::default()
+            ..opts.train.clone()
         };
         let seeds: Vec<(glam::Vec3, [u8; 3])> = scene
             .points

@@ -74,10 +74,7 @@ pub fn ensure_edit_fields(dir: &Path, log: &mut dyn FnMut(String)) -> Result<Edi
     }
     for (name, out) in [("mug", &f.mug), ("torus", &f.torus)] {
         if !out.is_file() {
-            let opts = DemoFieldOptions {
-                steps: OBJECT_STEPS,
-                ..Default::default()
-            };
+            let opts = DemoFieldOptions::steps(OBJECT_STEPS);
             let r = write_object_field(&f.scene, name, &opts, out)?;
             log(format!(
                 "{name}: {} steps in {:.0} s, grid {:?}",

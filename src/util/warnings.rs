@@ -1,8 +1,9 @@
 //! Self-checks: what a stage noticed about its own result that the user should act on. Every
-//! stage checks its output against named thresholds (`scene::checks`, `segment::checks`,
-//! `field::checks`, `mesh::checks`) and returns [`Warning`]s; commands write them into
-//! report.json as `warnings` and print them at the end. The aim is that no bad result is handed
-//! over silently: a result is good, or it carries a warning that says why it may not be.
+//! stage checks its output against named thresholds and returns [`Warning`]s; commands write
+//! them into report.json as `warnings` and print them at the end. The aim is that no bad result
+//! is handed over silently: a result is good, or it carries a warning that says why it may not
+//! be. `docs/self-checks.md` lists every check with its floor and the reason for it
+//! (`tests/self_checks.rs` holds the list to the code).
 
 use serde::Serialize;
 
