@@ -48,12 +48,12 @@ fn library_code(file: &Path) -> String {
     }
 }
 
-/// The warning codes raised in `code`: the snake_case string literal that stands alone on its
+/// The warning codes raised in `code`: the snake_case string literals that stand alone on their
 /// line as an argument (the way every check passes its code to `Warning::new` or its helper).
 fn codes_in(code: &str) -> BTreeSet<String> {
     code.lines()
         .filter_map(|l| l.trim().strip_prefix('"')?.strip_suffix("\","))
-        .filter(|s| s.contains('_') && s.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
+        .filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
         .map(String::from)
         .collect()
 }

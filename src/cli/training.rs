@@ -73,10 +73,10 @@ mod tests {
     fn time_budget_means_the_same_in_every_command() {
         for c in COMMANDS {
             assert_eq!(budget(c, &["--time-budget", "30"]), Ok(Some(30.0)), "{c}");
-            assert_eq!(budget(c, &["--time-budget", "2.5"]), Ok(Some(2.5)), "{c}");
+            assert_eq!(budget(c, &["--time-budget=2.5"]), Ok(Some(2.5)), "{c}");
             assert_eq!(budget(c, &["--time-budget", "none"]), Ok(None), "{c}");
             for bad in ["0", "-5", "inf", "soon"] {
-                let e = budget(c, &["--time-budget", bad]).unwrap_err();
+                let e = budget(c, &[&format!("--time-budget={bad}")]).unwrap_err();
                 assert!(e.contains("not a time budget"), "{c} {bad}: {e}");
             }
         }
