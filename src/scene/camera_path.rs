@@ -7,6 +7,10 @@
 //! `p -> scale * (T p)` after undoing the dataset's `applied_transform`). Intrinsics are a vertical
 //! field of view in degrees at the path's render size: square pixels, centred principal point, no
 //! distortion. Axis flips go through `frames.rs`.
+//!
+//! Every file written says which world it is in ([`FRAME_KEY`]: "data" or "viewer"; nerfstudio
+//! reads keys by name and ignores it). A file without the key (nerfstudio's viewer writes none)
+//! is in the world its reader assumes; one in a world objnerf does not know is an error.
 
 use crate::error::{Error, Result};
 use crate::scene::formats::json::{parse_json, read_json_file};
@@ -62,6 +66,46 @@ pub enum PathFrame {
     Data,
     /// The world of nerfstudio's viewer and `ns-render`: the dataparser's output.
     Viewer(DataparserTransform),
+}
+
+/// The key of a camera_path.json that names its world: [`FrameName::as_str`].
+pub const FRAME_KEY: &str = "objnerf_frame";
+
+/// A world's name, as [`FRAME_KEY`] holds it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameName {
+    Data,
+    Viewer,
+}
+
+impl FrameName {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FrameName::Data => "data",
+            FrameName::Viewer => "viewer",
+        }
+    }
+
+    /// The world a file states, None when it states none.
+    fn stated(v: Option<&serde_json::Value>) -> std::result::Result<Option<Self>, String> {
+        match v.map(|v| (v, v.as_str())) {
+            None => Ok(None),
+            Some((_, Some("data"))) => Ok(Some(FrameName::Data)),
+            Some((_, Some("viewer"))) => Ok(Some(FrameName::Viewer)),
+            Some((v, _)) => Err(format!(
+                "{FRAME_KEY} is {v}, a frame objnerf does not know (\"data\": the dataset's world, \"viewer\": nerfstudio's)"
+            )),
+        }
+    }
+}
+
+impl PathFrame {
+    pub fn name(&self) -> FrameName {
+        match self {
+            PathFrame::Data => FrameName::Data,
+            PathFrame::Viewer(_) => FrameName::Viewer,
+        }
+    }
 }
 
 /// nerfstudio's `dataparser_transforms.json` (written into every training run's folder), plus the
@@ -256,6 +300,7 @@ fn pose_from_16(v: &[f64]) -> std::result::Result<Pose, String> {
 
 #[derive(Deserialize)]
 struct PathFileIn {
+    objnerf_frame: Option<serde_json::Value>,
     render_width: Option<f64>,
     render_height: Option<f64>,
     fps: Option<f64>,
@@ -272,6 +317,7 @@ struct PathEntryIn {
 
 #[derive(Serialize)]
 struct PathFileOut {
+    objnerf_frame: &'static str,
     camera_type: &'static str,
     render_width: u32,
     render_height: u32,
@@ -334,15 +380,27 @@ fn parse_lens(camera_type: Option<&str>) -> std::result::Result<PathLens, String
 }
 
 impl CameraPath {
-    /// Read a camera_path.json whose matrices are in `frame`; the cameras come out in the data
-    /// frame. Every error names the file and, for a camera, its index.
+    /// Read a camera_path.json; the cameras come out in the data frame. A file that states its
+    /// world ([`FRAME_KEY`]) is read in it (a viewer-frame file needs `frame` to be
+    /// [`PathFrame::Viewer`], for its transform); one that does not is read in `frame`. Every error
+    /// names the file and, for a camera, its index.
     pub fn read(path: &Path, frame: &PathFrame) -> Result<CameraPath> {
+        Self::read_stated(path, frame).map(|(p, _)| p)
+    }
+
+    /// [`CameraPath::read`], also returning the world the file stated (None: it stated none and
+    /// was read in `frame`).
+    pub fn read_stated(path: &Path, frame: &PathFrame) -> Result<(CameraPath, Option<FrameName>)> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         Self::parse(path, &bytes, frame)
     }
 
-    /// [`CameraPath::read`] on a file's bytes (`path` names it in errors).
-    pub fn parse(path: &Path, bytes: &[u8], frame: &PathFrame) -> Result<CameraPath> {
+    /// [`CameraPath::read_stated`] on a file's bytes (`path` names it in errors).
+    pub fn parse(
+        path: &Path,
+        bytes: &[u8],
+        frame: &PathFrame,
+    ) -> Result<(CameraPath, Option<FrameName>)> {
         let file: PathFileIn = parse_json(path, bytes)?;
         Self::from_file(file, frame).map_err(|m| Error::format(path, m))
     }
@@ -378,7 +436,11 @@ impl CameraPath {
         })
     }
 
-    fn from_file(file: PathFileIn, frame: &PathFrame) -> std::result::Result<CameraPath, String> {
+    fn from_file(
+        file: PathFileIn,
+        frame: &PathFrame,
+    ) -> std::result::Result<(CameraPath, Option<FrameName>), String> {
+        let stated = FrameName::stated(file.objnerf_frame.as_ref())?;
         let width = whole_pixels(file.render_width, "render_width")?;
         let height = whole_pixels(file.render_height, "render_height")?;
         let seconds = positive(file.seconds.ok_or("missing key 'seconds'")?, "seconds")?;
@@ -392,9 +454,14 @@ impl CameraPath {
             Some(f) => positive(f, "fps")?,
             None => entries.len() as f64 / seconds,
         };
-        let to_data = match frame {
-            PathFrame::Data => None,
-            PathFrame::Viewer(t) => Some(
+        let to_data = match (stated, frame) {
+            (Some(FrameName::Data), _) | (None, PathFrame::Data) => None,
+            (Some(FrameName::Viewer), PathFrame::Data) => {
+                return Err(format!(
+                    "the path is in nerfstudio's viewer frame ({FRAME_KEY} \"viewer\"): reading it needs the training run's dataparser_transforms.json (objnerf camera-path PATH --dataparser-transforms F --scene DATASET --out DATA_PATH --frame data)"
+                ))
+            }
+            (_, PathFrame::Viewer(t)) => Some(
                 t.data_to_viewer()
                     .map_err(|m| format!("dataparser transform: {m}"))?
                     .inverse(),
@@ -419,17 +486,18 @@ impl CameraPath {
                 Ok(PathCamera { pose, camera })
             })
             .collect::<std::result::Result<Vec<_>, _>>()?;
-        Ok(CameraPath {
+        let path = CameraPath {
             width,
             height,
             fps,
             seconds,
             lens,
             cameras,
-        })
+        };
+        Ok((path, stated))
     }
 
-    /// Write the path with its matrices in `frame`, atomically. Fails (writing nothing) when a
+    /// Write the path with its matrices in `frame`, which the file states, atomically. Fails (writing nothing) when a
     /// camera is not a path camera (distortion, off-centre, other size) or a number is not finite.
     pub fn write(&self, path: &Path, frame: &PathFrame) -> Result<()> {
         let file = self.to_file(frame).map_err(|m| {
@@ -471,6 +539,7 @@ impl CameraPath {
             });
         }
         Ok(PathFileOut {
+            objnerf_frame: frame.name().as_str(),
             camera_type: self.lens.name(),
             render_width: self.width,
             render_height: self.height,
