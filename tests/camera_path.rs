@@ -456,13 +456,9 @@ fn paths_a_camera_path_cannot_hold_are_refused_and_nothing_is_written() {
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0);
 }
 
-/// `objnerf camera-path` on a path in the viewer's frame, with the run's dataparser_transforms.json
-/// and the dataset whose applied_transform nerfstudio applied: it prints the data-frame cameras
-/// (1e-6) and writes them as a data-frame path; a bad path is a clear error and writes nothing.
-#[test]
-fn cli_reads_a_viewer_path_into_the_data_frame() {
-    let tmp = tempfile::tempdir().unwrap();
-    let t = tmp.path();
+/// In `t`: a run's dataparser_transforms.json (`transforms()`), the dataset it trained on with its
+/// applied_transform, and the viewer frame they make.
+fn nerfstudio_run(t: &Path) -> (std::path::PathBuf, std::path::PathBuf, PathFrame) {
     let (applied, transform, scale) = transforms();
     let dpt = t.join("dataparser_transforms.json");
     let json = serde_json::json!({"transform": transform, "scale": scale});
@@ -474,6 +470,17 @@ fn cli_reads_a_viewer_path_into_the_data_frame() {
     let tf = t.join("data/transforms.json");
     objnerf::scene::formats::nerfstudio::write(&scene, &tf).unwrap();
     let frame = PathFrame::Viewer(DataparserTransform::read(&dpt, Some(applied)).unwrap());
+    (dpt, tf, frame)
+}
+
+/// `objnerf camera-path` on a path in the viewer's frame, with the run's dataparser_transforms.json
+/// and the dataset whose applied_transform nerfstudio applied: it prints the data-frame cameras
+/// (1e-6) and writes them as a data-frame path; a bad path is a clear error and writes nothing.
+#[test]
+fn cli_reads_a_viewer_path_into_the_data_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (dpt, tf, frame) = nerfstudio_run(t);
     let path = orbit();
     let viewer = t.join("viewer.json");
     path.write(&viewer, &frame).unwrap();
@@ -555,17 +562,7 @@ fn cli_reads_a_viewer_path_into_the_data_frame() {
 fn cli_writes_a_data_path_in_the_viewer_frame() {
     let tmp = tempfile::tempdir().unwrap();
     let t = tmp.path();
-    let (applied, transform, scale) = transforms();
-    let dpt = t.join("dataparser_transforms.json");
-    let json = serde_json::json!({"transform": transform, "scale": scale});
-    std::fs::write(&dpt, json.to_string()).unwrap();
-    let mut scene = support::tiny_scene(&t.join("data"));
-    scene.applied_transform = Some(applied);
-    scene.points.iter_mut().for_each(|p| p.track.clear());
-    scene.images.iter_mut().for_each(|i| i.features.clear());
-    let tf = t.join("data/transforms.json");
-    objnerf::scene::formats::nerfstudio::write(&scene, &tf).unwrap();
-    let frame = PathFrame::Viewer(DataparserTransform::read(&dpt, Some(applied)).unwrap());
+    let (dpt, tf, frame) = nerfstudio_run(t);
     let data = t.join("data_path.json");
     orbit().write(&data, &PathFrame::Data).unwrap();
 
