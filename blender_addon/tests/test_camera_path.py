@@ -8,6 +8,7 @@ import json
 import math
 import os
 import subprocess
+import sys
 
 import bpy
 import numpy as np
@@ -15,6 +16,9 @@ import pytest
 from conftest import ROOT, blender_report, scene_objects, skip
 from mathutils import Matrix, Vector
 from objnerf_blender import camera_path, frames, importer
+
+sys.path.insert(0, os.path.join(ROOT, "tests", "nerfstudio"))
+from with_applied_transform import COLMAP_APPLIED, with_applied_transform  # noqa: E402
 
 
 def orbit_camera(n=24, radius=1.6, height=0.9, lens=(30.0, 42.0)):
@@ -150,27 +154,6 @@ def test_camera_path_reads_back_in_nerfstudio(prefs, demo_run, tmp_path):
 
 # ------------------------------------------------------------------ nerfstudio's viewer frame
 
-# nerfstudio's applied_transform for COLMAP data (x <-> y, z negated), as ns-process-data writes it.
-COLMAP_APPLIED = [[0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0]]
-
-
-def with_applied_transform(transforms_json, out_dir):
-    """A copy of `transforms_json` in `out_dir` with absolute file paths and COLMAP_APPLIED as its
-    applied_transform: a dataset whose frame nerfstudio reaches from an original one."""
-    doc = json.loads(open(transforms_json, encoding="utf-8").read())
-    base = os.path.dirname(os.path.abspath(transforms_json))
-    for owner in (doc, *doc["frames"]):
-        for key in ("file_path", "depth_file_path", "mask_path", "ply_file_path"):
-            if key in owner:
-                owner[key] = os.path.join(base, owner[key])
-    doc["applied_transform"] = COLMAP_APPLIED
-    os.makedirs(out_dir, exist_ok=True)
-    path = os.path.join(out_dir, "transforms.json")
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(doc, f)
-    return path
-
-
 def to_viewer(c2w, transform, scale, applied):
     """Worked in numpy: a capture-frame camera-to-world (4x4, OpenGL) in nerfstudio's viewer frame,
     scale * T * A^-1 applied and the scale taken out of the camera's axes."""
@@ -205,7 +188,7 @@ def test_camera_path_in_nerfstudios_viewer_frame(prefs, demo_run, tmp_path):
     """With a run's dataparser_transforms.json (a known turn, move and scale) and a dataset with an
     applied_transform, each camera of the file is Blender's taken by scale * T * A^-1, worked out
     here in numpy (1e-6), and the file says "viewer"; its field of view is Blender's."""
-    scene_json = with_applied_transform(os.path.join(demo_run, "scene", "transforms.json"), tmp_path / "scene")
+    scene_json = with_applied_transform(os.path.join(demo_run, "scene", "transforms.json"), str(tmp_path / "scene"))
     root, cam = import_for_path(scene_json)
     turn = Matrix.Rotation(0.7, 3, Vector((0.3, -0.5, 0.8)).normalized())
     transform = [[*turn[r], (0.4, -1.2, 0.35)[r]] for r in range(3)]
@@ -247,16 +230,19 @@ def test_viewer_frame_path_reads_back_in_nerfstudio(prefs, tmp_path):
         camera in nerfstudio's original frame (A^-1 of the capture frame);
       - the frames placed at dataset views are, as read, the viewer-frame cameras nerfstudio's own
         dataparser makes of those views (its transform checked equal to the run's).
-    Environment: OBJNERF_NERFSTUDIO_PYTHON, and OBJNERF_NS_FRAME_RUN: a folder with data/ (the
-    export) and dataparser_transforms.json (the run's)."""
-    py, run = os.environ.get("OBJNERF_NERFSTUDIO_PYTHON"), os.environ.get("OBJNERF_NS_FRAME_RUN")
-    if not (py and run):
-        skip("OBJNERF_NERFSTUDIO_PYTHON or OBJNERF_NS_FRAME_RUN is not set (scripts/check-nerfstudio sets them)")
-    data, dpt = os.path.join(run, "data"), os.path.join(run, "dataparser_transforms.json")
+    Environment: OBJNERF_NERFSTUDIO_PYTHON, OBJNERF_NS_DATASET (the export) and
+    OBJNERF_NS_DATAPARSER_TRANSFORMS (the run's file)."""
+    env = [os.environ.get(k) for k in ("OBJNERF_NERFSTUDIO_PYTHON", "OBJNERF_NS_DATASET",
+                                       "OBJNERF_NS_DATAPARSER_TRANSFORMS")]
+    if not all(env):
+        skip("OBJNERF_NERFSTUDIO_PYTHON, OBJNERF_NS_DATASET or OBJNERF_NS_DATAPARSER_TRANSFORMS is not set "
+             "(scripts/check-nerfstudio sets them)")
+    py, data, dpt = env
     tf = json.loads(open(os.path.join(data, "transforms.json"), encoding="utf-8").read())
     assert tf.get("applied_transform") is not None, "the dataset should carry an applied_transform"
     root, cam = import_for_path(os.path.join(data, "transforms.json"))
     views = sorted(scene_objects("CAMERA"), key=lambda o: o.name)[::6][:6]
+    bpy.context.view_layer.update()  # the views' matrix_world under the moved root
     for i, v in enumerate(views):  # the orbit's first frames move onto dataset views
         cam.matrix_world = v.matrix_world
         cam.keyframe_insert("location", frame=i + 1)
