@@ -1,13 +1,13 @@
 //! nerfstudio camera paths: written then read gives the same cameras, a path in the viewer's frame
-//! (with its dataparser_transforms.json) gives the cameras of the same path in the data frame, and
-//! bad files are clear errors.
+//! (with its dataparser_transforms.json) gives the cameras of the same path in the data frame,
+//! every file states its frame, and bad files are clear errors.
 
 mod common;
 mod support;
 
 use glam::{DMat3, DMat4, DVec3};
 use objnerf::scene::camera_path::{
-    CameraPath, DataparserTransform, Orbit, PathCamera, PathFrame, PathLens,
+    CameraPath, DataparserTransform, FrameName, Orbit, PathCamera, PathFrame, PathLens, FRAME_KEY,
 };
 use objnerf::scene::{Camera, CameraModel, Pose};
 use std::path::Path;
@@ -178,6 +178,8 @@ fn viewer_frame_and_data_frame_give_the_same_cameras() {
         DMat4::from_scale(DVec3::splat(scale)) * mat4(&transform) * mat4(&applied).inverse();
     let mut json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&data_file).unwrap()).unwrap();
+    // nerfstudio's viewer states no frame: read in the one the reader is given.
+    json.as_object_mut().unwrap().remove(FRAME_KEY);
     for entry in json["camera_path"].as_array_mut().unwrap() {
         let m: Vec<f64> = serde_json::from_value(entry["camera_to_world"].clone()).unwrap();
         let c2w = DMat4::from_cols_array(&m.try_into().unwrap()).transpose();
@@ -200,6 +202,7 @@ fn viewer_frame_and_data_frame_give_the_same_cameras() {
     assert_same_cameras(&data_path, &CameraPath::read(&ours, &frame).unwrap(), 1e-9);
     let ours: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&ours).unwrap()).unwrap();
+    assert_eq!(ours[FRAME_KEY], "viewer");
     for (a, b) in ours["camera_path"]
         .as_array()
         .unwrap()
@@ -222,6 +225,113 @@ fn viewer_frame_and_data_frame_give_the_same_cameras() {
         from_data.cameras[0].pose.c2w_opencv(),
     );
     assert!(d > 0.1, "{d}");
+}
+
+/// nerfstudio's colmap applied_transform, a quarter turn about z moved by (1, 2, 3) and a scale of
+/// 1/2: a camera at (0.2, -0.4, 1) with the data frame's axes is, worked out by hand, at
+/// (0.4, 0.8, 1) in the viewer's, its x and z axes reversed.
+#[test]
+fn a_known_transform_takes_a_camera_to_the_viewer_frame_and_back() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dpt_file = tmp.path().join("dataparser_transforms.json");
+    let quarter_turn = [
+        [0.0, -1.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0, 2.0],
+        [0.0, 0.0, 1.0, 3.0],
+    ];
+    let json = serde_json::json!({"transform": quarter_turn, "scale": 0.5});
+    std::fs::write(&dpt_file, json.to_string()).unwrap();
+    let colmap = [
+        [0.0, 1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, -1.0, 0.0],
+    ];
+    let frame = PathFrame::Viewer(DataparserTransform::read(&dpt_file, Some(colmap)).unwrap());
+    let pose = Pose::from_c2w_opengl([
+        [1.0, 0.0, 0.0, 0.2],
+        [0.0, 1.0, 0.0, -0.4],
+        [0.0, 0.0, 1.0, 1.0],
+    ])
+    .unwrap();
+    let path = CameraPath::from_poses(64, 48, 30.0, &[(pose, 50.0)]).unwrap();
+    let file = tmp.path().join("viewer.json");
+    path.write(&file, &frame).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(json[FRAME_KEY], "viewer");
+    let want = [
+        -1.0, 0.0, 0.0, 0.4, 0.0, 1.0, 0.0, 0.8, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0, 0.0, 1.0,
+    ];
+    for (k, w) in want.iter().enumerate() {
+        let got = json["camera_path"][0]["camera_to_world"][k]
+            .as_f64()
+            .unwrap();
+        assert!((got - w).abs() < 1e-12, "entry {k}: {got} vs {w}");
+    }
+    let back = CameraPath::read(&file, &frame).unwrap();
+    assert!(max_diff(back.cameras[0].pose.c2w_opengl(), pose.c2w_opengl()) < 1e-12);
+
+    // A whole orbit, data -> viewer -> data, under the tilted transform of `transforms()`.
+    let (applied, transform, scale) = transforms();
+    let json = serde_json::json!({"transform": transform, "scale": scale});
+    std::fs::write(&dpt_file, json.to_string()).unwrap();
+    let frame = PathFrame::Viewer(DataparserTransform::read(&dpt_file, Some(applied)).unwrap());
+    orbit().write(&file, &frame).unwrap();
+    let (back, stated) = CameraPath::read_stated(&file, &frame).unwrap();
+    assert_eq!(stated, Some(FrameName::Viewer));
+    assert_same_cameras(&orbit(), &back, 1e-9);
+}
+
+/// Every file states its frame; a reader follows what a file states, refuses a viewer-frame file
+/// without the run's transform and a frame it does not know, naming the file.
+#[test]
+fn files_state_their_frame_and_unknown_frames_are_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (applied, transform, scale) = transforms();
+    let dpt_file = t.join("dataparser_transforms.json");
+    let json = serde_json::json!({"transform": transform, "scale": scale});
+    std::fs::write(&dpt_file, json.to_string()).unwrap();
+    let viewer = PathFrame::Viewer(DataparserTransform::read(&dpt_file, Some(applied)).unwrap());
+    let stated = |file: &Path| -> serde_json::Value {
+        serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(file).unwrap()).unwrap()
+            [FRAME_KEY]
+            .clone()
+    };
+    let (data_file, viewer_file) = (t.join("data.json"), t.join("viewer.json"));
+    orbit().write(&data_file, &PathFrame::Data).unwrap();
+    orbit().write(&viewer_file, &viewer).unwrap();
+    assert_eq!(stated(&data_file), "data");
+    assert_eq!(stated(&viewer_file), "viewer");
+
+    // A data-frame file is read as data even where the reader could undo a viewer frame.
+    let (back, said) = CameraPath::read_stated(&data_file, &viewer).unwrap();
+    assert_eq!(said, Some(FrameName::Data));
+    assert_same_cameras(&orbit(), &back, 1e-12);
+    // A viewer-frame file read where only the data frame is known (as render-edit reads paths).
+    let e = CameraPath::read(&viewer_file, &PathFrame::Data)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("viewer.json")
+            && e.contains("viewer frame")
+            && e.contains("--dataparser-transforms"),
+        "{e}"
+    );
+    for bad in [
+        serde_json::json!("world"),
+        serde_json::json!("Viewer"),
+        serde_json::json!(3),
+    ] {
+        let shown = bad.to_string();
+        let e = read_error(t, "unknown_frame", |j| j[FRAME_KEY] = bad);
+        assert!(
+            e.contains(&format!("objnerf_frame is {shown}")) && e.contains("does not know"),
+            "{e}"
+        );
+        let file = t.join("unknown_frame.json");
+        assert!(CameraPath::read(&file, &viewer).is_err());
+    }
 }
 
 /// A one-camera path file with `edit` applied to its JSON; returns the read error.
@@ -346,13 +456,9 @@ fn paths_a_camera_path_cannot_hold_are_refused_and_nothing_is_written() {
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0);
 }
 
-/// `objnerf camera-path` on a path in the viewer's frame, with the run's dataparser_transforms.json
-/// and the dataset whose applied_transform nerfstudio applied: it prints the data-frame cameras
-/// (1e-6) and writes them as a data-frame path; a bad path is a clear error and writes nothing.
-#[test]
-fn cli_reads_a_viewer_path_into_the_data_frame() {
-    let tmp = tempfile::tempdir().unwrap();
-    let t = tmp.path();
+/// In `t`: a run's dataparser_transforms.json (`transforms()`), the dataset it trained on with its
+/// applied_transform, and the viewer frame they make.
+fn nerfstudio_run(t: &Path) -> (std::path::PathBuf, std::path::PathBuf, PathFrame) {
     let (applied, transform, scale) = transforms();
     let dpt = t.join("dataparser_transforms.json");
     let json = serde_json::json!({"transform": transform, "scale": scale});
@@ -364,6 +470,17 @@ fn cli_reads_a_viewer_path_into_the_data_frame() {
     let tf = t.join("data/transforms.json");
     objnerf::scene::formats::nerfstudio::write(&scene, &tf).unwrap();
     let frame = PathFrame::Viewer(DataparserTransform::read(&dpt, Some(applied)).unwrap());
+    (dpt, tf, frame)
+}
+
+/// `objnerf camera-path` on a path in the viewer's frame, with the run's dataparser_transforms.json
+/// and the dataset whose applied_transform nerfstudio applied: it prints the data-frame cameras
+/// (1e-6) and writes them as a data-frame path; a bad path is a clear error and writes nothing.
+#[test]
+fn cli_reads_a_viewer_path_into_the_data_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (dpt, tf, frame) = nerfstudio_run(t);
     let path = orbit();
     let viewer = t.join("viewer.json");
     path.write(&viewer, &frame).unwrap();
@@ -436,4 +553,94 @@ fn cli_reads_a_viewer_path_into_the_data_frame() {
         "{err}"
     );
     assert!(!not_written.exists());
+}
+
+/// `objnerf camera-path --frame viewer`: a data-frame path (as the Blender add-on writes it) goes
+/// to nerfstudio's viewer frame exactly as the library writes it, stating so; `--frame viewer`
+/// without the run's transform and a file in an unknown frame are clear errors writing nothing.
+#[test]
+fn cli_writes_a_data_path_in_the_viewer_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let (dpt, tf, frame) = nerfstudio_run(t);
+    let data = t.join("data_path.json");
+    orbit().write(&data, &PathFrame::Data).unwrap();
+
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = t.join("viewer_path.json");
+    let o = common::objnerf_ok(&[
+        "camera-path",
+        &s(&data),
+        "--dataparser-transforms",
+        &s(&dpt),
+        "--scene",
+        &s(&tf),
+        "--out",
+        &s(&out),
+        "--frame",
+        "viewer",
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("read in the data frame, the dataset's own world (as the file states)")
+            && text.contains("in nerfstudio's viewer frame"),
+        "{text}"
+    );
+    let library = t.join("library.json");
+    orbit().write(&library, &frame).unwrap();
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (got, want) = (read(&out), read(&library));
+    assert_eq!(got[FRAME_KEY], "viewer");
+    for (a, b) in got["camera_path"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(want["camera_path"].as_array().unwrap())
+    {
+        for k in 0..16 {
+            let (x, y) = (
+                a["camera_to_world"][k].as_f64().unwrap(),
+                b["camera_to_world"][k].as_f64().unwrap(),
+            );
+            assert!((x - y).abs() < 1e-12, "{x} vs {y}");
+        }
+    }
+    assert_same_cameras(&orbit(), &CameraPath::read(&out, &frame).unwrap(), 1e-9);
+
+    let fails = |args: &[&str], needle: &str| {
+        let o = std::process::Command::new(common::objnerf_bin())
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(needle), "{err}");
+    };
+    let never = t.join("never.json");
+    fails(
+        &[
+            "camera-path",
+            &s(&data),
+            "--out",
+            &s(&never),
+            "--frame",
+            "viewer",
+        ],
+        "--frame viewer needs the training run's --dataparser-transforms",
+    );
+    let mut unknown = read(&data);
+    unknown[FRAME_KEY] = "dataset".into();
+    let unknown_file = t.join("unknown.json");
+    std::fs::write(&unknown_file, unknown.to_string()).unwrap();
+    fails(
+        &["camera-path", &s(&unknown_file), "--out", &s(&never)],
+        "unknown.json: ",
+    );
+    fails(
+        &["camera-path", &s(&out), "--out", &s(&never)],
+        "viewer frame",
+    );
+    assert!(!never.exists());
 }

@@ -1,4 +1,7 @@
-"""The animated camera as nerfstudio's `camera_path.json`, in the capture ("data") frame.
+"""The animated camera as nerfstudio's `camera_path.json`, in the capture ("data") frame or, given
+the nerfstudio run's `dataparser_transforms.json`, in nerfstudio's viewer frame, which
+`ns-render camera-path` reads. The file says which (`"objnerf_frame": "data"` or `"viewer"`; nerfstudio
+ignores the key).
 
 Per frame (scene frame_start..frame_end, every frame): `camera_to_world` is the camera's
 `matrix_world` taken into the capture frame (root^-1 @ matrix_world) with its scale divided out,
@@ -9,20 +12,28 @@ resolution times its percentage, `fps` the scene's frame rate.
 
 nerfstudio's camera path has no principal point and square pixels only, so lens shift and
 non-square pixel aspect are refused (they would render a different image), not dropped.
+The viewer frame is `objnerf camera-path DATA_PATH --dataparser-transforms F --scene S --out OUT
+--frame viewer` on the data-frame path, S being the root's scene (for the dataset's
+`applied_transform`, which nerfstudio undoes first): the binary owns that conversion.
+
 `read_camera_path` reads a file back the way nerfstudio's `get_path_from_json` does.
 """
 
 import json
 import math
 import os
+import tempfile
 
 import bpy
 import numpy as np
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import frames, props
+from . import cli, frames, prefs, props
 from .errors import ObjnerfError, reports_errors
+
+# The key that says which world a camera path's matrices are in (src/scene/camera_path.rs).
+FRAME_KEY = "objnerf_frame"
 
 
 def camera_path_document(context, cam, root):
@@ -51,6 +62,7 @@ def camera_path_document(context, cam, root):
     finally:
         scene.frame_set(keep)
     return {
+        FRAME_KEY: "data",
         "camera_type": "perspective",
         "render_width": w,
         "render_height": h,
@@ -60,14 +72,34 @@ def camera_path_document(context, cam, root):
     }
 
 
-def write_camera_path(context, cam, root, filepath):
-    doc = camera_path_document(context, cam, root)
-    os.makedirs(os.path.dirname(os.path.abspath(filepath)), exist_ok=True)
+def _write_json(doc, filepath):
     with open(filepath + ".tmp", "w", encoding="utf-8") as f:
         json.dump(doc, f, indent=2)
         f.write("\n")
     os.replace(filepath + ".tmp", filepath)
-    return doc
+
+
+def write_camera_path(context, cam, root, filepath, dataparser_transforms="", binary=None):
+    """Write `cam`'s path to `filepath`: in the capture frame, or with `dataparser_transforms` (a
+    nerfstudio run's file) in nerfstudio's viewer frame through `binary` (the objnerf executable).
+    Returns the document written. Nothing is written when anything fails."""
+    doc = camera_path_document(context, cam, root)
+    os.makedirs(os.path.dirname(os.path.abspath(filepath)), exist_ok=True)
+    if not dataparser_transforms:
+        _write_json(doc, filepath)
+        return doc
+    if not os.path.isfile(dataparser_transforms):
+        raise ObjnerfError(f"{dataparser_transforms}: no such file (the nerfstudio run's dataparser_transforms.json)")
+    with tempfile.TemporaryDirectory(prefix="objnerf_path_") as tmp:
+        data_path = os.path.join(tmp, "camera_path_data.json")
+        _write_json(doc, data_path)
+        args = ["camera-path", data_path, "--dataparser-transforms", dataparser_transforms,
+                "--out", filepath, "--frame", "viewer"]
+        if root.objnerf.scene_path:
+            args += ["--scene", root.objnerf.scene_path]
+        cli.run(binary, args)
+    with open(filepath, encoding="utf-8") as f:
+        return json.load(f)
 
 
 def read_camera_path(filepath):
@@ -91,20 +123,29 @@ def read_camera_path(filepath):
 
 
 class OBJNERF_OT_export_camera_path(bpy.types.Operator, ExportHelper):
-    """Write the active camera's animation as nerfstudio's camera_path.json (capture frame)"""
+    """Write the active camera's animation as nerfstudio's camera_path.json (capture frame, or
+    nerfstudio's viewer frame given the run's dataparser_transforms.json)"""
 
     bl_idname = "objnerf.export_camera_path"
     bl_label = "Export camera_path.json"
 
     filename_ext = ".json"
     filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
+    dataparser_transforms: StringProperty(
+        name="dataparser_transforms.json", subtype="FILE_PATH", default="",
+        description="The nerfstudio training run's dataparser_transforms.json. Set: the path is "
+                    "written in nerfstudio's viewer frame, which ns-render camera-path reads. "
+                    "Empty: in the capture (data) frame")
 
     @reports_errors
     def execute(self, context):
         root = props.active_root(context)
         path = bpy.path.abspath(self.filepath)
-        doc = write_camera_path(context, context.scene.camera, root, path)
-        self.report({"INFO"}, f"wrote {path} ({len(doc['camera_path'])} frames)")
+        dpt = bpy.path.abspath(self.dataparser_transforms) if self.dataparser_transforms else ""
+        binary = prefs.binary(context) if dpt else None
+        doc = write_camera_path(context, context.scene.camera, root, path, dpt, binary)
+        frame = "nerfstudio's viewer frame" if dpt else "capture frame"
+        self.report({"INFO"}, f"wrote {path} ({len(doc['camera_path'])} frames, {frame})")
         return {"FINISHED"}
 
 

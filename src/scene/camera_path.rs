@@ -7,14 +7,21 @@
 //! `p -> scale * (T p)` after undoing the dataset's `applied_transform`). Intrinsics are a vertical
 //! field of view in degrees at the path's render size: square pixels, centred principal point, no
 //! distortion. Axis flips go through `frames.rs`.
+//!
+//! Every file written says which world it is in ([`FRAME_KEY`]: "data" or "viewer"; nerfstudio
+//! reads keys by name and ignores it). A file without the key (nerfstudio's viewer writes none)
+//! is in the world its reader assumes; one in a world objnerf does not know is an error.
 
 use crate::error::{Error, Result};
-use crate::scene::formats::json::{parse_json, read_json_file};
+use crate::scene::formats::json::parse_json;
 use crate::scene::{Camera, CameraModel, Pose, Scene};
 use crate::util::write_atomic;
-use glam::{DMat3, DMat4, DVec3};
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+
+mod frame;
+pub use frame::{DataparserTransform, FrameName, PathFrame, FRAME_KEY};
 
 /// The lens of every camera in a path (nerfstudio's `camera_type`). nerfstudio's panoramic types
 /// (equirectangular, omnidirectional, vr180) have no focal length and are refused.
@@ -52,108 +59,6 @@ pub struct CameraPath {
     pub seconds: f64,
     pub lens: PathLens,
     pub cameras: Vec<PathCamera>,
-}
-
-/// Which world a path's matrices are in.
-#[derive(Clone, Debug, PartialEq)]
-#[allow(clippy::large_enum_variant)] // one per file read or written: a box would only add noise
-pub enum PathFrame {
-    /// The dataset's own world (its transforms.json's, our scene's).
-    Data,
-    /// The world of nerfstudio's viewer and `ns-render`: the dataparser's output.
-    Viewer(DataparserTransform),
-}
-
-/// nerfstudio's `dataparser_transforms.json` (written into every training run's folder), plus the
-/// dataset's `applied_transform`: nerfstudio's `transform` starts from the coordinates before that
-/// was applied, our scene is in those after it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DataparserTransform {
-    /// 3x4 row-major, rigid.
-    pub transform: [[f64; 4]; 3],
-    pub scale: f64,
-    pub applied_transform: Option<[[f64; 4]; 3]>,
-}
-
-/// Tolerance on "a rotation times a scale" for the world transforms nerfstudio writes (float32).
-const SIMILARITY_TOL: f64 = 1e-5;
-
-/// A 3x4 row-major transform as a 4x4 matrix, checked to be a similarity (s R, t) with s > 0.
-fn similarity(m: &[[f64; 4]; 3], what: &str) -> std::result::Result<DMat4, String> {
-    if m.iter().flatten().any(|v| !v.is_finite()) {
-        return Err(format!("{what} has a non-finite entry"));
-    }
-    let col = |j: usize| DVec3::new(m[0][j], m[1][j], m[2][j]);
-    let lin = DMat3::from_cols(col(0), col(1), col(2));
-    let s = lin.determinant().cbrt();
-    let rot = lin * (1.0 / s);
-    let err = (rot.transpose() * rot - DMat3::IDENTITY)
-        .to_cols_array()
-        .iter()
-        .fold(0.0f64, |a, v| a.max(v.abs()));
-    if !(s > 0.0 && err < SIMILARITY_TOL) {
-        return Err(format!(
-            "{what} is not a rotation with a uniform scale (det = {:.6}, |R^T R - I| = {err:.2e})",
-            lin.determinant()
-        ));
-    }
-    Ok(DMat4::from_cols(
-        col(0).extend(0.0),
-        col(1).extend(0.0),
-        col(2).extend(0.0),
-        col(3).extend(1.0),
-    ))
-}
-
-#[derive(Serialize, Deserialize)]
-struct DataparserFile {
-    transform: Vec<Vec<f64>>,
-    scale: f64,
-}
-
-impl DataparserTransform {
-    /// Read `dataparser_transforms.json`; `applied_transform` is the dataset's (its scene's).
-    pub fn read(path: &Path, applied_transform: Option<[[f64; 4]; 3]>) -> Result<Self> {
-        let file: DataparserFile = read_json_file(path)?;
-        let bad = |m: String| Error::format(path, m);
-        if file.transform.len() < 3 || file.transform.iter().take(3).any(|r| r.len() != 4) {
-            return Err(bad("'transform' must be 3x4 (or 4x4)".into()));
-        }
-        let transform = [0, 1, 2].map(|r| {
-            let row = &file.transform[r];
-            [row[0], row[1], row[2], row[3]]
-        });
-        let t = DataparserTransform {
-            transform,
-            scale: file.scale,
-            applied_transform,
-        };
-        t.data_to_viewer().map_err(bad)?;
-        Ok(t)
-    }
-
-    /// Write it as nerfstudio does (`applied_transform` belongs to the dataset, not this file).
-    pub fn write(&self, path: &Path) -> Result<()> {
-        let file = DataparserFile {
-            transform: self.transform.iter().map(|r| r.to_vec()).collect(),
-            scale: self.scale,
-        };
-        let json = serde_json::to_string_pretty(&file).map_err(|e| Error::json(path, e))?;
-        write_atomic(path, |w| w.write_all(json.as_bytes()))
-    }
-
-    /// The map from the data world to the viewer's: `scale * T * applied^-1`, a similarity.
-    pub fn data_to_viewer(&self) -> std::result::Result<DMat4, String> {
-        if !(self.scale.is_finite() && self.scale > 0.0) {
-            return Err(format!("scale is {}, not a positive number", self.scale));
-        }
-        let t = similarity(&self.transform, "transform")?;
-        let undo_applied = match &self.applied_transform {
-            Some(a) => similarity(a, "the dataset's applied_transform")?.inverse(),
-            None => DMat4::IDENTITY,
-        };
-        Ok(DMat4::from_scale(DVec3::splat(self.scale)) * t * undo_applied)
-    }
 }
 
 /// The path camera with a vertical field of view `fov_deg` at `width` x `height`.
@@ -256,6 +161,7 @@ fn pose_from_16(v: &[f64]) -> std::result::Result<Pose, String> {
 
 #[derive(Deserialize)]
 struct PathFileIn {
+    objnerf_frame: Option<serde_json::Value>,
     render_width: Option<f64>,
     render_height: Option<f64>,
     fps: Option<f64>,
@@ -272,6 +178,7 @@ struct PathEntryIn {
 
 #[derive(Serialize)]
 struct PathFileOut {
+    objnerf_frame: &'static str,
     camera_type: &'static str,
     render_width: u32,
     render_height: u32,
@@ -334,15 +241,27 @@ fn parse_lens(camera_type: Option<&str>) -> std::result::Result<PathLens, String
 }
 
 impl CameraPath {
-    /// Read a camera_path.json whose matrices are in `frame`; the cameras come out in the data
-    /// frame. Every error names the file and, for a camera, its index.
+    /// Read a camera_path.json; the cameras come out in the data frame. A file that states its
+    /// world ([`FRAME_KEY`]) is read in it (a viewer-frame file needs `frame` to be
+    /// [`PathFrame::Viewer`], for its transform); one that does not is read in `frame`. Every error
+    /// names the file and, for a camera, its index.
     pub fn read(path: &Path, frame: &PathFrame) -> Result<CameraPath> {
+        Self::read_stated(path, frame).map(|(p, _)| p)
+    }
+
+    /// [`CameraPath::read`], also returning the world the file stated (None: it stated none and
+    /// was read in `frame`).
+    pub fn read_stated(path: &Path, frame: &PathFrame) -> Result<(CameraPath, Option<FrameName>)> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         Self::parse(path, &bytes, frame)
     }
 
-    /// [`CameraPath::read`] on a file's bytes (`path` names it in errors).
-    pub fn parse(path: &Path, bytes: &[u8], frame: &PathFrame) -> Result<CameraPath> {
+    /// [`CameraPath::read_stated`] on a file's bytes (`path` names it in errors).
+    pub fn parse(
+        path: &Path,
+        bytes: &[u8],
+        frame: &PathFrame,
+    ) -> Result<(CameraPath, Option<FrameName>)> {
         let file: PathFileIn = parse_json(path, bytes)?;
         Self::from_file(file, frame).map_err(|m| Error::format(path, m))
     }
@@ -378,7 +297,11 @@ impl CameraPath {
         })
     }
 
-    fn from_file(file: PathFileIn, frame: &PathFrame) -> std::result::Result<CameraPath, String> {
+    fn from_file(
+        file: PathFileIn,
+        frame: &PathFrame,
+    ) -> std::result::Result<(CameraPath, Option<FrameName>), String> {
+        let stated = FrameName::stated(file.objnerf_frame.as_ref())?;
         let width = whole_pixels(file.render_width, "render_width")?;
         let height = whole_pixels(file.render_height, "render_height")?;
         let seconds = positive(file.seconds.ok_or("missing key 'seconds'")?, "seconds")?;
@@ -392,9 +315,14 @@ impl CameraPath {
             Some(f) => positive(f, "fps")?,
             None => entries.len() as f64 / seconds,
         };
-        let to_data = match frame {
-            PathFrame::Data => None,
-            PathFrame::Viewer(t) => Some(
+        let to_data = match (stated, frame) {
+            (Some(FrameName::Data), _) | (None, PathFrame::Data) => None,
+            (Some(FrameName::Viewer), PathFrame::Data) => {
+                return Err(format!(
+                    "the path is in nerfstudio's viewer frame ({FRAME_KEY} \"viewer\"): reading it needs the training run's dataparser_transforms.json (objnerf camera-path PATH --dataparser-transforms F --scene DATASET --out DATA_PATH --frame data)"
+                ))
+            }
+            (_, PathFrame::Viewer(t)) => Some(
                 t.data_to_viewer()
                     .map_err(|m| format!("dataparser transform: {m}"))?
                     .inverse(),
@@ -419,17 +347,18 @@ impl CameraPath {
                 Ok(PathCamera { pose, camera })
             })
             .collect::<std::result::Result<Vec<_>, _>>()?;
-        Ok(CameraPath {
+        let path = CameraPath {
             width,
             height,
             fps,
             seconds,
             lens,
             cameras,
-        })
+        };
+        Ok((path, stated))
     }
 
-    /// Write the path with its matrices in `frame`, atomically. Fails (writing nothing) when a
+    /// Write the path with its matrices in `frame`, which the file states, atomically. Fails (writing nothing) when a
     /// camera is not a path camera (distortion, off-centre, other size) or a number is not finite.
     pub fn write(&self, path: &Path, frame: &PathFrame) -> Result<()> {
         let file = self.to_file(frame).map_err(|m| {
@@ -471,6 +400,7 @@ impl CameraPath {
             });
         }
         Ok(PathFileOut {
+            objnerf_frame: frame.name().as_str(),
             camera_type: self.lens.name(),
             render_width: self.width,
             render_height: self.height,

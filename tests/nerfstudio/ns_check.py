@@ -8,6 +8,9 @@ Usage: python ns_check.py JOBS.json RESULTS.json. Each job is
   {"kind": "path", "file": FILE, "to_original": DATAPARSER_TRANSFORMS_JSON | null}
     get_path_from_json on FILE; with to_original, the poses are mapped from the viewer frame to the
     data frame with nerfstudio's transform_poses_to_original_space.
+  {"kind": "dataparser", "data": DIR}
+    NerfstudioDataParserConfig's defaults (what ns-train uses) on DIR: the cameras in the viewer
+    frame, with the transform and scale it would save as dataparser_transforms.json.
 Results are plain numbers and file names; the test compares them with objnerf's.
 """
 
@@ -86,10 +89,21 @@ def camera_path(job):
     return cameras_dict(cams, c2w)
 
 
+def dataparser(job):
+    config = NerfstudioDataParserConfig(data=Path(job["data"]), eval_mode="all")
+    outputs = config.setup().get_dataparser_outputs(split="train")
+    out = cameras_dict(outputs.cameras, outputs.cameras.camera_to_worlds)
+    out["image_filenames"] = [str(p) for p in outputs.image_filenames]
+    out["transform"] = outputs.dataparser_transform.double().tolist()
+    out["scale"] = float(outputs.dataparser_scale)
+    return out
+
+
 def main():
     with open(sys.argv[1]) as f:
         jobs = json.load(f)["jobs"]
-    results = [dataset(j) if j["kind"] == "dataset" else camera_path(j) for j in jobs]
+    run = {"dataset": dataset, "path": camera_path, "dataparser": dataparser}
+    results = [run[j["kind"]](j) for j in jobs]
     with open(sys.argv[2], "w") as f:
         json.dump({"results": results}, f)
 

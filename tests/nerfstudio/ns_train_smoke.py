@@ -3,27 +3,15 @@ manager, pixel sampler and model run on our dataset. Prints the loss of every st
 
 Usage: python ns_train_smoke.py DATA_DIR OUT_DIR STEPS
 
-LPIPS (torchmetrics) fetches AlexNet weights when it is built, which fails offline; it is an eval
-metric that a few training steps never compute, so it is replaced by a stub returning 0.
+LPIPS is stubbed (lpips_stub.py): it fetches weights, which fails offline.
 """
 
 import math
 import sys
 from pathlib import Path
 
+import lpips_stub  # noqa: F401  (before nerfstudio's models import LPIPS)
 import torch
-import torchmetrics.image.lpip as lpip
-
-
-class NoLpips(torch.nn.Module):
-    def __init__(self, *args, **kwargs):
-        super().__init__()
-
-    def forward(self, a, b):
-        return torch.zeros(())
-
-
-lpip.LearnedPerceptualImagePatchSimilarity = NoLpips
 
 from nerfstudio.configs.method_configs import method_configs  # noqa: E402  (after the stub)
 
