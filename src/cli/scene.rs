@@ -37,7 +37,8 @@ impl InfoCmd {
 pub struct SfmCmd {
     /// A folder of images (full reconstruction) or a posed scene (triangulation).
     input: PathBuf,
-    /// Output folder: gets sparse/0/ (COLMAP binary) and images/ (a link to the images).
+    /// Output folder: gets sparse/0/ (COLMAP binary), database.db (COLMAP's, for its GUI) and
+    /// images/ (a link to the images).
     #[arg(long)]
     out: PathBuf,
     /// Downscale images by this factor before feature extraction (the model is scaled back).
@@ -96,6 +97,17 @@ impl SfmCmd {
                 report.mean_track_length,
                 report.seconds,
                 report.model_dir.display()
+            );
+            let stages: Vec<String> = report
+                .stages
+                .iter()
+                .map(|t| format!("{} {:.1} s", t.stage, t.seconds))
+                .collect();
+            println!(
+                "COLMAP {}: {}; its database {} opens with the model in COLMAP's GUI",
+                report.colmap_version,
+                stages.join(", "),
+                report.database.display()
             );
             super::print_warnings(&report.warnings);
         }

@@ -1,12 +1,14 @@
-//! Running COLMAP's programs: finding the executable, one program at a time with its output
-//! logged and reported as progress, feature extraction and matching, and the ids COLMAP gave the
-//! images in its database.
+//! Running COLMAP's programs: finding the executable and its version (which decides some option
+//! names), building each program's command line, running one program at a time with its output
+//! logged and reported as progress, and the ids COLMAP gave the images in its database.
 
-use super::SfmOptions;
+use super::StageTime;
 use crate::error::{Error, Result};
 use crate::util::{Detail, Progress};
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::Instant;
 
 /// Find the `colmap` program, or say how to install it.
 pub fn colmap_program() -> Result<PathBuf> {
@@ -29,11 +31,110 @@ pub fn colmap_program() -> Result<PathBuf> {
     ))
 }
 
+/// A COLMAP release number, as `colmap help` prints it ("COLMAP 3.8 -- ...",
+/// "COLMAP 3.13.0 -- ...", "COLMAP 4.1.1 (Commit ...)").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct ColmapVersion {
+    pub major: u32,
+    pub minor: u32,
+    pub patch: u32,
+}
+
+impl ColmapVersion {
+    pub const fn new(major: u32, minor: u32, patch: u32) -> Self {
+        ColmapVersion {
+            major,
+            minor,
+            patch,
+        }
+    }
+
+    /// The version in the first "COLMAP X.Y[.Z]" of `colmap help`'s output.
+    pub fn from_help(text: &str) -> Option<Self> {
+        text.match_indices("COLMAP ").find_map(|(i, m)| {
+            let rest = &text[i + m.len()..];
+            let token: String = rest
+                .chars()
+                .take_while(|c| c.is_ascii_digit() || *c == '.')
+                .collect();
+            let mut parts = token.split('.').filter(|p| !p.is_empty());
+            let major = parts.next()?.parse().ok()?;
+            let minor = parts.next()?.parse().ok()?;
+            let patch = parts.next().and_then(|p| p.parse().ok()).unwrap_or(0);
+            Some(ColmapVersion::new(major, minor, patch))
+        })
+    }
+
+    /// The option section of feature extraction's GPU and thread options: `SiftExtraction` up to
+    /// 3.12, `FeatureExtraction` from 3.13.0 (colmap PR 3465 renamed them and dropped the old
+    /// names; `SiftExtraction.max_num_features` kept its name).
+    pub(super) fn extraction(self) -> &'static str {
+        if self >= RENAMED_FEATURE_OPTIONS {
+            "FeatureExtraction"
+        } else {
+            "SiftExtraction"
+        }
+    }
+
+    /// The matchers' counterpart of [`Self::extraction`]: `SiftMatching` / `FeatureMatching`.
+    pub(super) fn matching(self) -> &'static str {
+        if self >= RENAMED_FEATURE_OPTIONS {
+            "FeatureMatching"
+        } else {
+            "SiftMatching"
+        }
+    }
+}
+
+impl std::fmt::Display for ColmapVersion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}.{}.{}", self.major, self.minor, self.patch)
+    }
+}
+
+/// The first release with the FeatureExtraction / FeatureMatching option names.
+const RENAMED_FEATURE_OPTIONS: ColmapVersion = ColmapVersion::new(3, 13, 0);
+
+/// The installed COLMAP: its program and its version.
+#[derive(Clone, Debug)]
+pub struct Colmap {
+    pub program: PathBuf,
+    pub version: ColmapVersion,
+}
+
+impl Colmap {
+    /// Find `colmap` ([`colmap_program`]) and read its version from `colmap help`.
+    pub fn find() -> Result<Colmap> {
+        let program = colmap_program()?;
+        let out = Command::new(&program)
+            .arg("help")
+            .env("QT_QPA_PLATFORM", "offscreen")
+            .output()
+            .map_err(|e| {
+                Error::external("colmap", format!("cannot run {}: {e}", program.display()))
+            })?;
+        let mut text = String::from_utf8_lossy(&out.stdout).to_string();
+        text.push_str(&String::from_utf8_lossy(&out.stderr));
+        let version = ColmapVersion::from_help(&text).ok_or_else(|| {
+            Error::external(
+                "colmap",
+                format!(
+                    "cannot tell the version of {} from `colmap help`, which printed: {:?} (objnerf runs COLMAP 3.8 to 3.13)",
+                    program.display(),
+                    text.lines().next().unwrap_or("")
+                ),
+            )
+        })?;
+        Ok(Colmap { program, version })
+    }
+}
+
 /// COLMAP's programs as one progress stage of three steps (features, matching, mapping or
-/// triangulation).
+/// triangulation), each program's time kept for the report.
 pub(super) struct Steps<'a> {
     progress: &'a dyn Progress,
     done: std::cell::Cell<u64>,
+    times: RefCell<Vec<StageTime>>,
 }
 
 impl<'a> Steps<'a> {
@@ -42,13 +143,23 @@ impl<'a> Steps<'a> {
         Steps {
             progress,
             done: std::cell::Cell::new(0),
+            times: RefCell::new(Vec::new()),
         }
     }
 
-    fn finished(&self, program: &str) {
+    fn finished(&self, program: &str, seconds: f64) {
         self.done.set(self.done.get() + 1);
         self.progress
             .advance(self.done.get(), Detail::Item(program));
+        self.times.borrow_mut().push(StageTime {
+            stage: stage_name(program).to_string(),
+            seconds,
+        });
+    }
+
+    /// The time each finished program took, in order.
+    pub(super) fn times(&self) -> Vec<StageTime> {
+        self.times.borrow().clone()
     }
 }
 
@@ -58,13 +169,35 @@ impl Drop for Steps<'_> {
     }
 }
 
-pub(super) fn run_colmap(program: &Path, args: &[String], log: &Path, steps: &Steps) -> Result<()> {
+/// The report's name for what a COLMAP program does.
+fn stage_name(program: &str) -> &str {
+    match program {
+        "feature_extractor" => "features",
+        "exhaustive_matcher" | "sequential_matcher" | "matches_importer" => "matching",
+        "mapper" => "mapping",
+        "point_triangulator" => "triangulation",
+        other => other,
+    }
+}
+
+pub(super) fn run_colmap(
+    colmap: &Colmap,
+    args: &[String],
+    log: &Path,
+    steps: &Steps,
+) -> Result<()> {
     let stage = args.first().cloned().unwrap_or_default();
-    let out = Command::new(program)
+    let start = Instant::now();
+    let out = Command::new(&colmap.program)
         .args(args)
         .env("QT_QPA_PLATFORM", "offscreen")
         .output()
-        .map_err(|e| Error::external("colmap", format!("cannot run {}: {e}", program.display())))?;
+        .map_err(|e| {
+            Error::external(
+                "colmap",
+                format!("cannot run {}: {e}", colmap.program.display()),
+            )
+        })?;
     let mut text = String::from_utf8_lossy(&out.stdout).to_string();
     text.push_str(&String::from_utf8_lossy(&out.stderr));
     use std::io::Write;
@@ -87,10 +220,15 @@ pub(super) fn run_colmap(program: &Path, args: &[String], log: &Path, steps: &St
             .join("\n");
         return Err(Error::external(
             format!("colmap {stage}"),
-            format!("failed ({}); log {}:\n{tail}", out.status, log.display()),
+            format!(
+                "failed ({}; COLMAP {}); log {}:\n{tail}",
+                out.status,
+                colmap.version,
+                log.display()
+            ),
         ));
     }
-    steps.finished(&stage);
+    steps.finished(&stage, start.elapsed().as_secs_f64());
     Ok(())
 }
 
@@ -117,110 +255,4 @@ pub(super) fn database_ids(db: &Path) -> Result<std::collections::HashMap<String
         })
         .map_err(err)?;
     rows.collect::<std::result::Result<_, _>>().map_err(err)
-}
-
-/// Where the features of the staged images get matched.
-pub(super) struct MatchPlan<'a> {
-    /// Pairs (indices into `staged`) for a posed scene, or None.
-    pub pairs: Option<&'a [(usize, usize)]>,
-    pub staged: &'a [String],
-}
-
-pub(super) fn extract_and_match(
-    program: &Path,
-    work: &Path,
-    opts: &SfmOptions,
-    camera_args: &[String],
-    plan: MatchPlan,
-    log: &Path,
-    steps: &Steps,
-) -> Result<()> {
-    let db = work.join("database.db");
-    let mut args = vec![
-        s("feature_extractor"),
-        s("--database_path"),
-        db.display().to_string(),
-        s("--image_path"),
-        work.join("images").display().to_string(),
-        s("--SiftExtraction.use_gpu"),
-        s("0"),
-        s("--SiftExtraction.max_num_features"),
-        opts.max_features.to_string(),
-        s("--SiftExtraction.num_threads"),
-        opts.threads.to_string(),
-    ];
-    args.extend_from_slice(camera_args);
-    run_colmap(program, &args, log, steps)?;
-    let mut args = match (opts.matcher.as_str(), plan.pairs) {
-        ("auto" | "pairs", Some(pairs)) => {
-            let list = work.join("pairs.txt");
-            let text: String = pairs
-                .iter()
-                .map(|&(i, j)| format!("{} {}\n", plan.staged[i], plan.staged[j]))
-                .collect();
-            std::fs::write(&list, text).map_err(|e| Error::io(&list, e))?;
-            vec![
-                s("matches_importer"),
-                s("--match_list_path"),
-                list.display().to_string(),
-                s("--match_type"),
-                s("pairs"),
-            ]
-        }
-        ("pairs", None) => {
-            return Err(Error::invalid(
-                "--matcher pairs needs a posed scene (pairs are chosen from the poses)",
-            ))
-        }
-        ("auto" | "exhaustive", _) => vec![s("exhaustive_matcher")],
-        ("sequential", _) => vec![s("sequential_matcher")],
-        (m, _) => {
-            return Err(Error::invalid(format!(
-                "unknown matcher '{m}': use auto, exhaustive, sequential or pairs"
-            )))
-        }
-    };
-    args.extend([
-        s("--database_path"),
-        db.display().to_string(),
-        s("--SiftMatching.use_gpu"),
-        s("0"),
-        s("--SiftMatching.num_threads"),
-        opts.threads.to_string(),
-    ]);
-    run_colmap(program, &args, log, steps)
-}
-
-/// Run the mapper (full reconstruction) or the point triangulator (known poses) on the staged
-/// images' database, writing into `output`; `input` is the known model to triangulate.
-pub(super) fn map_points(
-    program: &Path,
-    work: &Path,
-    input: Option<&Path>,
-    output: &Path,
-    opts: &SfmOptions,
-    steps: &Steps,
-) -> Result<()> {
-    std::fs::create_dir_all(output).map_err(|e| Error::io(output, e))?;
-    let mut args = vec![
-        s(if input.is_some() {
-            "point_triangulator"
-        } else {
-            "mapper"
-        }),
-        s("--database_path"),
-        work.join("database.db").display().to_string(),
-        s("--image_path"),
-        work.join("images").display().to_string(),
-    ];
-    if let Some(input) = input {
-        args.extend([s("--input_path"), input.display().to_string()]);
-    }
-    args.extend([
-        s("--output_path"),
-        output.display().to_string(),
-        s("--Mapper.num_threads"),
-        opts.threads.to_string(),
-    ]);
-    run_colmap(program, &args, &work.join("colmap.log"), steps)
 }

@@ -8,10 +8,12 @@
 //! size afterwards, so its intrinsics and 2D features always match the original images.
 
 mod colmap_run;
+mod commands;
+mod database;
 mod reconstruct;
 mod triangulate;
 
-pub use colmap_run::colmap_program;
+pub use colmap_run::{colmap_program, Colmap, ColmapVersion};
 pub use reconstruct::reconstruct;
 pub use triangulate::{pairs_from_poses, triangulate};
 
@@ -19,6 +21,7 @@ use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};
 use crate::scene::io::{is_image, read_image};
 use crate::scene::{Scene, SourceFormat};
+use crate::util::AtomicDir;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -64,11 +67,26 @@ pub struct SfmReport {
     pub num_points: usize,
     pub mean_track_length: f64,
     pub seconds: f64,
+    /// The time each stage took, in order (COLMAP's programs: features, matching, mapping or
+    /// triangulation).
+    pub stages: Vec<StageTime>,
     pub model_dir: PathBuf,
+    /// COLMAP's database beside the model (image names and sizes as the model's), so that the
+    /// run opens in COLMAP's GUI.
+    pub database: PathBuf,
+    /// The COLMAP that ran.
+    pub colmap_version: String,
     /// Image pairs matched when they were chosen from the poses (triangulation).
     pub matched_pairs: Option<usize>,
     /// The self-checks of the model COLMAP made ([`crate::scene::capture_checks`]).
     pub warnings: Vec<crate::util::Warning>,
+}
+
+/// How long one stage of a run took.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StageTime {
+    pub stage: String,
+    pub seconds: f64,
 }
 
 /// What `objnerf sfm` was given.
@@ -103,18 +121,56 @@ pub fn resolve_input(input: &Path, force_reconstruct: bool) -> Result<SfmInput> 
     }
 }
 
-/// A scratch folder for COLMAP's database and staged images, removed when dropped.
-fn work_dir() -> Result<tempfile::TempDir> {
-    tempfile::Builder::new()
-        .prefix("objnerf-sfm-")
-        .tempdir()
-        .map_err(|e| Error::io(std::env::temp_dir(), e))
+/// One run's state: the COLMAP that runs, a scratch folder for its database and the staged
+/// images (removed when dropped), and the output folder being built (locked; renamed into place
+/// at the end, removed if the run fails).
+struct Run {
+    colmap: colmap_run::Colmap,
+    work: tempfile::TempDir,
+    dest: AtomicDir,
+    start: Instant,
+    stages: Vec<StageTime>,
 }
 
-/// Fail early (before minutes of COLMAP) when the output folder would be refused at the end.
-fn check_out(out: &Path, opts: &SfmOptions) -> Result<()> {
-    drop(crate::util::AtomicDir::new(out, opts.overwrite)?);
-    Ok(())
+impl Run {
+    /// Find COLMAP, claim `out` (refused before minutes of work if it is not empty and
+    /// `--overwrite` is off), make the scratch folder.
+    fn begin(out: &Path, opts: &SfmOptions) -> Result<Run> {
+        let start = Instant::now();
+        let colmap = colmap_run::Colmap::find()?;
+        let dest = AtomicDir::new(out, opts.overwrite)?;
+        let work = tempfile::Builder::new()
+            .prefix("objnerf-sfm-")
+            .tempdir()
+            .map_err(|e| Error::io(std::env::temp_dir(), e))?;
+        Ok(Run {
+            colmap,
+            work,
+            dest,
+            start,
+            stages: Vec::new(),
+        })
+    }
+
+    fn work(&self) -> &Path {
+        self.work.path()
+    }
+}
+
+/// The images COLMAP saw: `names[k]` in `work/images` is the image `paths[k]`, called
+/// `originals[k]` in the model.
+struct Staged {
+    names: Vec<String>,
+    originals: Vec<String>,
+    paths: Vec<PathBuf>,
+}
+
+/// Where the output's `images/` comes from.
+enum ImagesOut<'a> {
+    /// A link to the folder the images are in.
+    Link(&'a Path),
+    /// Already written into the output folder.
+    InPlace,
 }
 
 /// Prepare `work/images/NNNNN.ext`: symlinks to the originals, or downscaled copies. Sorted names
@@ -182,23 +238,22 @@ fn relative_name(path: &Path, root: &Path) -> String {
 
 /// Give the model's images their original names and paths, and scale cameras and features
 /// from the staged (downscaled) size back to the original image size.
-fn rename_and_rescale(
-    model: &mut Scene,
-    staged: &[String],
-    originals: &[String],
-    paths: &[PathBuf],
-) -> Result<()> {
+fn rename_and_rescale(model: &mut Scene, staged: &Staged) -> Result<()> {
     let mut scale_for_camera: Vec<Option<(u32, u32)>> = vec![None; model.cameras.len()];
     for im in &mut model.images {
-        let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| {
-            Error::external(
-                "colmap",
-                format!("unknown image '{}' in its output", im.name),
-            )
-        })?;
-        im.name = originals[k].clone();
-        im.path = paths[k].clone();
-        let (w, h) = image::image_dimensions(&paths[k]).map_err(|e| Error::image(&paths[k], e))?;
+        let k = staged
+            .names
+            .iter()
+            .position(|n| *n == im.name)
+            .ok_or_else(|| {
+                Error::external(
+                    "colmap",
+                    format!("unknown image '{}' in its output", im.name),
+                )
+            })?;
+        im.name = staged.originals[k].clone();
+        im.path = staged.paths[k].clone();
+        let (w, h) = image_size(&staged.paths[k])?;
         let cam = &model.cameras[im.camera].camera;
         let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
         for f in &mut im.features {
@@ -215,29 +270,45 @@ fn rename_and_rescale(
     Ok(())
 }
 
+fn image_size(path: &Path) -> Result<(u32, u32)> {
+    image::image_dimensions(path).map_err(|e| Error::image(path, e))
+}
+
+/// Write the model (renamed and rescaled: [`rename_and_rescale`]) and COLMAP's database into the
+/// output folder, link or keep its images, and move it into place.
 fn finish(
+    mut run: Run,
     mut model: Scene,
-    out: &Path,
-    images_root: &Path,
+    staged: &Staged,
+    images: ImagesOut,
     mode: &'static str,
-    num_images: usize,
-    start: Instant,
-    work: tempfile::TempDir,
+    steps: Vec<StageTime>,
 ) -> Result<SfmReport> {
-    // Checked empty (or --overwrite) before COLMAP ran.
-    let dest = crate::util::AtomicDir::new(out, true)?;
-    let model_dir = dest.path().join("sparse/0");
-    colmap::write_model(&model, &model_dir, ModelFormat::Binary)?;
-    let abs_root = std::fs::canonicalize(images_root).map_err(|e| Error::io(images_root, e))?;
-    std::os::unix::fs::symlink(&abs_root, dest.path().join("images"))
-        .map_err(|e| Error::io(dest.path().join("images"), e))?;
-    let _ = std::fs::copy(
-        work.path().join("colmap.log"),
-        dest.path().join("colmap.log"),
-    );
-    let out = dest.commit()?;
+    let dest = run.dest.path().to_path_buf();
+    colmap::write_model(&model, &dest.join("sparse/0"), ModelFormat::Binary)?;
+    if let ImagesOut::Link(root) = images {
+        let abs_root = std::fs::canonicalize(root).map_err(|e| Error::io(root, e))?;
+        std::os::unix::fs::symlink(&abs_root, dest.join("images"))
+            .map_err(|e| Error::io(dest.join("images"), e))?;
+    }
+    let full_sizes = staged
+        .paths
+        .iter()
+        .map(|p| image_size(p))
+        .collect::<Result<Vec<_>>>()?;
+    database::keep_database(
+        &run.work().join("database.db"),
+        &dest.join("database.db"),
+        &staged.names,
+        &staged.originals,
+        &full_sizes,
+    )?;
+    let _ = std::fs::copy(run.work().join("colmap.log"), dest.join("colmap.log"));
+    run.stages.extend(steps);
+    let out = run.dest.commit()?;
     model.source = out.join("sparse/0");
     model.format = SourceFormat::ColmapBinary;
+    let num_images = staged.names.len();
     let obs: usize = model.points.iter().map(|p| p.track.len()).sum();
     let mut warnings: Vec<_> =
         crate::scene::capture_checks::check_registration(num_images, model.images.len())
@@ -254,8 +325,11 @@ fn finish(
         } else {
             obs as f64 / model.points.len() as f64
         },
-        seconds: start.elapsed().as_secs_f64(),
+        seconds: run.start.elapsed().as_secs_f64(),
+        stages: run.stages,
         model_dir: out.join("sparse/0"),
+        database: out.join("database.db"),
+        colmap_version: run.colmap.version.to_string(),
         matched_pairs: None,
         warnings,
     })

@@ -1,19 +1,15 @@
 //! Triangulation with known poses: the scene's cameras and poses stay as they are, COLMAP only
 //! matches (pairs chosen from the poses) and triangulates points.
 
-use super::colmap_run::{
-    colmap_program, database_ids, extract_and_match, map_points, s, MatchPlan, Steps,
-};
-use super::{
-    check_out, finish, image_root, relative_name, rename_and_rescale, stage_images, work_dir,
-};
-use super::{SfmOptions, SfmReport};
+use super::colmap_run::{database_ids, s, Steps};
+use super::commands::{extract_and_match, map_points, Matching};
+use super::{finish, image_root, relative_name, rename_and_rescale, stage_images};
+use super::{ImagesOut, Run, SfmOptions, SfmReport, Staged};
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};
 use crate::scene::Scene;
 use crate::util::Progress;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// Triangulate points for a posed scene, keeping its cameras and poses. Writes `out/sparse/0`
 /// (image names as in the scene, relative to `out/images`, which links to the scene's folder).
@@ -24,33 +20,35 @@ pub fn triangulate(
     opts: &SfmOptions,
     progress: &dyn Progress,
 ) -> Result<SfmReport> {
-    let start = Instant::now();
-    let program = colmap_program()?;
-    check_out(out, opts)?;
+    let run = Run::begin(out, opts)?;
     let root = image_root(scene)?;
-    let work = work_dir()?;
-    let log = work.path().join("colmap.log");
     let paths: Vec<PathBuf> = scene.images.iter().map(|im| im.path.clone()).collect();
-    let staged = stage_images(&paths, work.path(), opts.downscale)?;
-
-    let (mut known, cam_args) = known_model(scene, &staged, opts.downscale);
+    let staged = Staged {
+        names: stage_images(&paths, run.work(), opts.downscale)?,
+        originals: scene
+            .images
+            .iter()
+            .map(|im| relative_name(&im.path, &root))
+            .collect(),
+        paths,
+    };
+    let (mut known, cam_args) = known_model(scene, &staged.names, opts.downscale);
     let pairs = pairs_from_poses(scene, opts.pair_neighbours);
     let steps = Steps::new(progress);
     extract_and_match(
-        &program,
-        work.path(),
+        &run.colmap,
+        run.work(),
         opts,
         &cam_args,
-        MatchPlan {
-            pairs: Some(&pairs),
-            staged: &staged,
-        },
-        &log,
+        (
+            Matching::choose(&opts.matcher, Some(&pairs), false)?,
+            &staged.names,
+        ),
         &steps,
     )?;
     // COLMAP numbers images and cameras as its extractor threads finish, not in list order:
     // take the ids from its database so the known model lines up with it.
-    let ids = database_ids(&work.path().join("database.db"))?;
+    let ids = database_ids(&run.work().join("database.db"))?;
     for im in known.images.iter_mut() {
         let &(image_id, camera_id) = ids.get(&im.name).ok_or_else(|| {
             Error::external(
@@ -61,12 +59,36 @@ pub fn triangulate(
         im.id = image_id;
         known.cameras[im.camera].id = camera_id;
     }
-    let input = work.path().join("known");
+    let input = run.work().join("known");
     colmap::write_model(&known, &input, ModelFormat::Text)?;
-    let tri = work.path().join("triangulated");
-    map_points(&program, work.path(), Some(&input), &tri, opts, &steps)?;
-    let mut model = colmap::read_model(&tri, &work.path().join("images"))?;
-    // The poses must come back unchanged; a mismatch means the database ids did not line up.
+    let tri = run.work().join("triangulated");
+    map_points(&run.colmap, run.work(), Some(&input), &tri, opts, &steps)?;
+    let mut model = colmap::read_model(&tri, &run.work().join("images"))?;
+    check_poses_kept(&model, scene, &staged.names)?;
+    rename_and_rescale(&mut model, &staged)?;
+    // Keep the scene's exact intrinsics and poses (COLMAP's text round trip is exact, but the
+    // original numbers are the reference).
+    for im in &mut model.images {
+        if let Some(k) = staged.originals.iter().position(|n| *n == im.name) {
+            im.pose = scene.images[k].pose;
+        }
+    }
+    let times = steps.times();
+    drop(steps);
+    let mut report = finish(
+        run,
+        model,
+        &staged,
+        ImagesOut::Link(&root),
+        "triangulate",
+        times,
+    )?;
+    report.matched_pairs = Some(pairs.len());
+    Ok(report)
+}
+
+/// The poses must come back unchanged; a mismatch means the database ids did not line up.
+fn check_poses_kept(model: &Scene, scene: &Scene, staged: &[String]) -> Result<()> {
     for im in &model.images {
         let k = staged.iter().position(|n| *n == im.name).ok_or_else(|| {
             Error::external(
@@ -85,30 +107,7 @@ pub fn triangulate(
             ));
         }
     }
-    let originals: Vec<String> = scene
-        .images
-        .iter()
-        .map(|im| relative_name(&im.path, &root))
-        .collect();
-    rename_and_rescale(&mut model, &staged, &originals, &paths)?;
-    // Keep the scene's exact intrinsics and poses (COLMAP's text round trip is exact, but the
-    // original numbers are the reference).
-    for im in &mut model.images {
-        if let Some(k) = originals.iter().position(|n| *n == im.name) {
-            im.pose = scene.images[k].pose;
-        }
-    }
-    let mut report = finish(
-        model,
-        out,
-        &root,
-        "triangulate",
-        scene.images.len(),
-        start,
-        work,
-    )?;
-    report.matched_pairs = Some(pairs.len());
-    Ok(report)
+    Ok(())
 }
 
 /// The model COLMAP triangulates from: the scene's cameras (at the staged size) and poses under
