@@ -36,8 +36,7 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
     } else if colmap::detect(path).is_some() {
         colmap::read_model(path, &colmap::default_images_root(path))?
-    } else if colmap::detect(&path.join("sparse/0")).is_some() {
-        let dir = path.join("sparse/0");
+    } else if let Some(dir) = model_folder(path) {
         colmap::read_model(&dir, &colmap::default_images_root(&dir))?
     } else if path.join("transforms.json").is_file() {
         nerfstudio::read(&path.join("transforms.json"))?
@@ -50,11 +49,21 @@ pub fn load(path: &Path) -> Result<Scene> {
     } else {
         return Err(Error::format(
             path,
-            "no scene found here: expected a COLMAP model (cameras.bin/.txt or sparse/0/), transforms.json, transforms_train.json, poses_bounds.npy or trajectory.log",
+            "no scene found here: expected a COLMAP model (cameras.bin/.txt, sparse/0/ or colmap/sparse/0/), transforms.json, transforms_train.json, poses_bounds.npy or trajectory.log",
         ));
     };
     check_files_exist(&scene)?;
     Ok(scene)
+}
+
+/// The COLMAP model in a project folder: `sparse/0` (COLMAP's own layout), or `colmap/sparse/0`
+/// (`ns-process-data`'s, with `images/` beside `colmap/`; preferred over its transforms.json,
+/// which has no tracks).
+fn model_folder(path: &Path) -> Option<std::path::PathBuf> {
+    ["sparse/0", "colmap/sparse/0"]
+        .iter()
+        .map(|sub| path.join(sub))
+        .find(|dir| colmap::detect(dir).is_some())
 }
 
 /// Every image (and mask/depth, where given) the scene lists must exist.

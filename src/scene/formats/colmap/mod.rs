@@ -507,21 +507,25 @@ fn read_file(path: &Path) -> Result<Vec<u8>> {
 }
 
 /// Where a model's images are, by COLMAP's usual layouts: `X/sparse/N` → `X/images`,
-/// a model in `X` → `X/images`, else the model's parent's `images`.
+/// `X/colmap/sparse/N` → `X/images` (ns-process-data), a model in `X` → `X/images`, else the
+/// model's parent's `images`.
 pub fn default_images_root(model_dir: &Path) -> PathBuf {
-    let candidates: Vec<PathBuf> = {
-        let mut c = Vec::new();
-        if let Some(p) = model_dir.parent() {
-            if p.file_name().is_some_and(|n| n == "sparse") {
-                if let Some(pp) = p.parent() {
-                    c.push(pp.join("images"));
+    let mut candidates = Vec::new();
+    if let Some(p) = model_dir.parent() {
+        if p.file_name().is_some_and(|n| n == "sparse") {
+            if let Some(pp) = p.parent() {
+                candidates.push(pp.join("images"));
+                // ns-process-data: <out>/colmap/sparse/0 with the images in <out>/images.
+                if pp.file_name().is_some_and(|n| n == "colmap") {
+                    if let Some(ppp) = pp.parent() {
+                        candidates.push(ppp.join("images"));
+                    }
                 }
             }
-            c.push(p.join("images"));
         }
-        c.push(model_dir.join("images"));
-        c
-    };
+        candidates.push(p.join("images"));
+    }
+    candidates.push(model_dir.join("images"));
     candidates
         .iter()
         .find(|c| c.is_dir())
