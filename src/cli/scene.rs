@@ -35,7 +35,7 @@ impl InfoCmd {
 
 #[derive(Args)]
 pub struct SfmCmd {
-    /// A folder of images (full reconstruction) or a posed scene (triangulation).
+    /// A folder of images or a video (full reconstruction), or a posed scene (triangulation).
     input: PathBuf,
     /// Output folder: gets sparse/0/ (COLMAP binary), database.db (COLMAP's, for its GUI) and
     /// images/ (a link to the images).
@@ -56,6 +56,9 @@ pub struct SfmCmd {
     /// Most SIFT features per image.
     #[arg(long, default_value_t = SfmOptions::default().max_features)]
     max_features: u32,
+    /// From a video: keep the sharpest frame of each of this many equal windows of it.
+    #[arg(long, default_value_t = SfmOptions::default().video_frames)]
+    frames: usize,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -74,6 +77,7 @@ impl SfmCmd {
             camera_model: self.camera_model,
             max_features: self.max_features,
             matcher: self.matcher,
+            video_frames: self.frames,
             overwrite: self.overwrite,
             ..Default::default()
         };
@@ -81,10 +85,21 @@ impl SfmCmd {
         let report = match sfm::resolve_input(&self.input, self.reconstruct)? {
             SfmInput::Images(dir) => sfm::reconstruct(&dir, &self.out, &opts, &bars)?,
             SfmInput::Posed(scene) => sfm::triangulate(&scene, &self.out, &opts, &bars)?,
+            SfmInput::Video(video) => sfm::reconstruct_video(&video, &self.out, &opts, &bars)?,
         };
         if self.json {
             print_json(&report);
         } else {
+            if let Some(v) = &report.video {
+                println!(
+                    "{}: the sharpest frame of each of {} windows of its {} frames (mean sharpness {:.0}, all frames {:.0})",
+                    v.video.display(),
+                    v.frames_chosen,
+                    v.frames_in_video,
+                    v.mean_sharpness_chosen,
+                    v.mean_sharpness_all
+                );
+            }
             if let Some(n) = report.matched_pairs {
                 println!("matched {n} image pairs chosen from the poses");
             }

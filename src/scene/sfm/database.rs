@@ -168,7 +168,8 @@ fn scale_geometries(
     tx: &rusqlite::Transaction,
     image_scale: &HashMap<i64, Scale>,
 ) -> rusqlite::Result<()> {
-    let rows: Vec<(i64, Option<Vec<u8>>, Option<Vec<u8>>)> = {
+    type Row = (i64, Option<Vec<u8>>, Option<Vec<u8>>);
+    let rows: Vec<Row> = {
         let mut stmt = tx.prepare("SELECT pair_id, F, H FROM two_view_geometries")?;
         let rows = stmt.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?;
         rows.collect::<rusqlite::Result<_>>()?

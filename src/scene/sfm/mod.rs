@@ -12,10 +12,13 @@ mod commands;
 mod database;
 mod reconstruct;
 mod triangulate;
+mod video;
 
 pub use colmap_run::{colmap_program, Colmap, ColmapVersion};
 pub use reconstruct::reconstruct;
 pub use triangulate::{pairs_from_poses, triangulate};
+pub use video::{reconstruct_video, sharpest_per_window, sharpness, take_frames};
+pub use video::{ChosenFrame, VideoFrames, VideoReport};
 
 use crate::error::{Error, Result};
 use crate::scene::formats::colmap::{self, ModelFormat};
@@ -40,6 +43,8 @@ pub struct SfmOptions {
     pub pair_neighbours: usize,
     /// COLMAP's threads (-1 = all cores).
     pub threads: i32,
+    /// From a video: keep the sharpest frame of each of this many equal windows.
+    pub video_frames: usize,
     /// Replace the output folder if it exists.
     pub overwrite: bool,
 }
@@ -53,6 +58,8 @@ impl Default for SfmOptions {
             matcher: "auto".into(),
             pair_neighbours: 12,
             threads: -1,
+            // nerfstudio's `ns-process-data video --num-frames-target` default.
+            video_frames: 300,
             overwrite: false,
         }
     }
@@ -80,6 +87,8 @@ pub struct SfmReport {
     pub matched_pairs: Option<usize>,
     /// The self-checks of the model COLMAP made ([`crate::scene::capture_checks`]).
     pub warnings: Vec<crate::util::Warning>,
+    /// From a video: what was taken from it.
+    pub video: Option<VideoReport>,
 }
 
 /// How long one stage of a run took.
@@ -95,6 +104,8 @@ pub enum SfmInput {
     Images(PathBuf),
     /// A posed scene: triangulation with its poses.
     Posed(Scene),
+    /// A video: frames chosen by sharpness, then full reconstruction.
+    Video(PathBuf),
 }
 
 fn has_images(dir: &Path) -> bool {
@@ -103,8 +114,12 @@ fn has_images(dir: &Path) -> bool {
         .unwrap_or(false)
 }
 
-/// A posed scene if `input` reads as one (and `force_reconstruct` is off), else a folder of images.
+/// A posed scene if `input` reads as one (and `force_reconstruct` is off), a video if it is a
+/// file that is no scene file (ffmpeg says whether it reads it), else a folder of images.
 pub fn resolve_input(input: &Path, force_reconstruct: bool) -> Result<SfmInput> {
+    if input.is_file() && !is_scene_file(input) && !is_image(input) {
+        return Ok(SfmInput::Video(input.to_path_buf()));
+    }
     match Scene::load(input) {
         Ok(scene) if !force_reconstruct => Ok(SfmInput::Posed(scene)),
         other => {
@@ -119,6 +134,15 @@ pub fn resolve_input(input: &Path, force_reconstruct: bool) -> Result<SfmInput> 
             }
         }
     }
+}
+
+/// Files [`Scene::load`] reads by their name.
+fn is_scene_file(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    name.ends_with(".json") || name == "poses_bounds.npy" || name.starts_with("cameras.")
 }
 
 /// One run's state: the COLMAP that runs, a scratch folder for its database and the staged
@@ -332,5 +356,6 @@ fn finish(
         colmap_version: run.colmap.version.to_string(),
         matched_pairs: None,
         warnings,
+        video: None,
     })
 }
