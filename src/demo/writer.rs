@@ -3,10 +3,10 @@
 
 use super::render::ViewRender;
 use crate::error::{Error, Result};
-use crate::scene::io::{mask_file, write_depth_exr, DepthMap};
+use crate::scene::io::{mask_file, write_depth_exr, write_depth_png_mm, DepthMap};
 use crate::util::atomic::save_image_atomic;
 use crate::util::write_atomic;
-use image::{DynamicImage, GrayImage, ImageBuffer, Luma, RgbImage};
+use image::{DynamicImage, GrayImage, Luma, RgbImage};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -80,19 +80,13 @@ pub fn write_view(
     )?;
 
     let (png, exr) = depth_paths(root, &stem);
-    let mm: ImageBuffer<Luma<u16>, Vec<u16>> = ImageBuffer::from_fn(w, h, |x, y| {
-        let d = r.depth[(y * w + x) as usize] as f64;
-        Luma([(d * 1000.0).round().clamp(0.0, 65535.0) as u16])
-    });
-    save_image_atomic(&png, &DynamicImage::ImageLuma16(mm))?;
-    write_depth_exr(
-        &exr,
-        &DepthMap {
-            width: w,
-            height: h,
-            metres: r.depth.clone(),
-        },
-    )?;
+    let depth = DepthMap {
+        width: w,
+        height: h,
+        metres: r.depth.clone(),
+    };
+    write_depth_png_mm(&png, &depth)?;
+    write_depth_exr(&exr, &depth)?;
 
     for (i, obj) in objects.iter().enumerate() {
         let mask = GrayImage::from_fn(w, h, |x, y| {

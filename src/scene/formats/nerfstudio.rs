@@ -71,6 +71,11 @@ struct Transforms {
     applied_transform: Option<Vec<Vec<f64>>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     ply_file_path: Option<String>,
+    /// Metres per stored depth unit, named as nerfstudio's dataparser option (which defaults to
+    /// 1e-3 and does not read this key): written with depth (0.001, millimetres) so the file
+    /// says its unit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    depth_unit_scale_factor: Option<f64>,
     frames: Vec<Frame>,
 }
 
@@ -194,7 +199,16 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Scene> {
         cameras,
         images,
         points,
-        depth_scale: 1000.0,
+        depth_scale: match tf.depth_unit_scale_factor {
+            None => 1000.0,
+            Some(f) if f.is_finite() && f > 0.0 => 1.0 / f,
+            Some(f) => {
+                return Err(Error::format(
+                    path,
+                    format!("depth_unit_scale_factor {f} is not a positive number"),
+                ))
+            }
+        },
         applied_transform,
     };
     scene.validate(path)?;
@@ -408,8 +422,10 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
             camera_keys(&c.camera).map_err(|m| Error::format(path, format!("camera {}: {m}", c.id)))
         })
         .collect::<Result<Vec<_>>>()?;
-    // nerfstudio reads depth images as millimetres and the file has no key to say otherwise.
-    if scene.images.iter().any(|i| i.depth_path.is_some()) && scene.depth_scale != 1000.0 {
+    // nerfstudio reads depth images as millimetres unless its dataparser is told otherwise on
+    // the command line; the key written below says so but nerfstudio does not read it.
+    let has_depth = scene.images.iter().any(|i| i.depth_path.is_some());
+    if has_depth && scene.depth_scale != 1000.0 {
         return Err(Error::invalid(format!(
             "{}: depth images store depth x {}, but transforms.json depth must be millimetres (x 1000)",
             path.display(),
@@ -459,6 +475,7 @@ pub fn write(scene: &Scene, path: &Path) -> Result<()> {
             .applied_transform
             .map(|m| m.iter().map(|r| r.to_vec()).collect()),
         ply_file_path,
+        depth_unit_scale_factor: has_depth.then_some(0.001),
         frames,
     };
     let json = serde_json::to_string_pretty(&tf).map_err(|e| Error::json(path, e))?;
