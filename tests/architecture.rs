@@ -10,6 +10,9 @@
 //! Imports are read from `crate::` and `super::` paths (in `use` statements, with their braces
 //! expanded, and inline), outside `#[cfg(test)]` modules.
 
+mod common;
+
+use common::rust_files;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -38,18 +41,6 @@ const TIERS: &[(&str, u32)] = &[
 
 fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
-}
-
-/// Every `.rs` file under `dir`.
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
 }
 
 /// The file's module path (`src/field/io.rs` -> [field, io]; `src/field/mod.rs` -> [field]).

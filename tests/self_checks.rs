@@ -2,12 +2,11 @@
 //! raise is in it, every code in it is raised where it says, and every floor it quotes has the
 //! value of the constant in the code.
 
+mod common;
+
+use common::{repo_root, rust_files};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// A row of the table: code, file, and the floors as (constant, value).
 struct Row {
@@ -17,7 +16,7 @@ struct Row {
 }
 
 fn rows() -> Vec<Row> {
-    let doc = std::fs::read_to_string(root().join("docs/self-checks.md")).unwrap();
+    let doc = std::fs::read_to_string(repo_root().join("docs/self-checks.md")).unwrap();
     let tick = |s: &str| s.trim().trim_matches('`').to_string();
     doc.lines()
         .filter(|l| l.starts_with("| `"))
@@ -32,7 +31,7 @@ fn rows() -> Vec<Row> {
                 .collect();
             Row {
                 code: tick(cells[1]),
-                file: root().join(tick(cells[3])),
+                file: repo_root().join(tick(cells[3])),
                 floors,
             }
         })
@@ -56,17 +55,6 @@ fn codes_in(code: &str) -> BTreeSet<String> {
         .filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
         .map(String::from)
         .collect()
-}
-
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
 }
 
 #[test]
@@ -101,7 +89,7 @@ fn every_check_in_the_list_is_raised_where_it_says_with_the_floor_it_says() {
 fn every_warning_the_library_raises_is_in_the_list() {
     let listed: BTreeSet<String> = rows().into_iter().map(|r| r.code).collect();
     let mut files = Vec::new();
-    rust_files(&root().join("src"), &mut files);
+    rust_files(&repo_root().join("src"), &mut files);
     let mut raised = BTreeSet::new();
     for f in files {
         let code = library_code(&f);
