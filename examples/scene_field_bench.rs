@@ -1,7 +1,8 @@
 //! Scene field on the demo scene: train on all views but every 6th, score the held-out ones
 //! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
-//! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES.
+//! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
+//! held out), SF_NET, SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C, SF_FREE.
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
 
@@ -9,7 +10,7 @@
 mod bench;
 
 use objnerf::field::eval::evaluate;
-use objnerf::field::holdout::held_out_views;
+use objnerf::field::holdout::{held_out_views, HoldOut};
 use objnerf::field::{load_views, MaskSource, RenderOptions, SetupConfig, TrainConfig};
 use objnerf::fit::{FitOptions, SceneFit, SceneFitOptions, SCENE_FIT_VIEWS};
 use std::path::PathBuf;
@@ -35,7 +36,14 @@ fn main() -> objnerf::Result<()> {
     if let Some(v) = env("SF_FIRST_SHARE") {
         setup.first_stage_share = v;
     }
-    let held = held_out_views(&scene, 6);
+    if let Some(f) = env("SF_NET") {
+        setup.net_features = f;
+    }
+    if let Some(v) = env("SF_VPP") {
+        setup.voxels_per_pixel = v;
+    }
+    let hold: HoldOut = env("SF_HOLD").unwrap_or(HoldOut::Every(6));
+    let held = held_out_views(&scene, hold);
     let d = SceneFitOptions::default();
     let mut opts = SceneFitOptions {
         space: env("SF_SPACE").unwrap_or_default(),
@@ -53,6 +61,12 @@ fn main() -> objnerf::Result<()> {
             carve_weight: env("SF_CARVE").unwrap_or(d.train.carve_weight),
             distortion_weight: env("SF_DIST").unwrap_or(d.train.distortion_weight),
             prune_alpha: env("SF_PRUNE_ALPHA").unwrap_or(d.train.prune_alpha),
+            free_space_weight: env("SF_FREE").unwrap_or(d.train.free_space_weight),
+            tv_density: env("SF_TV_D").unwrap_or(d.train.tv_density),
+            tv_color: env("SF_TV_C").unwrap_or(d.train.tv_color),
+            batch: env("SF_BATCH").unwrap_or(d.train.batch),
+            lr_density: env("SF_LR_D").unwrap_or(d.train.lr_density),
+            lr_color: env("SF_LR_C").unwrap_or(d.train.lr_color),
             ..d.train.clone()
         },
         ..Default::default()
@@ -68,11 +82,17 @@ fn main() -> objnerf::Result<()> {
     let cpu0 = bench::cpu_seconds();
     let t0 = std::time::Instant::now();
     let mut last = 0.0;
+    let (mut spr, mut nspr) = (0.0f64, 0usize);
     let mut fit = SceneFit::new(&scene, &opts)?;
     eprintln!("space: {}", fit.space_choice());
     fit.train(&opts.fit.stop_rule(), &mut |s| {
+        spr += s.samples_per_ray as f64;
+        nspr += 1;
         if s.seconds >= last {
-            eprintln!("t={:.0}s step={} psnr={:.2}", s.seconds, s.step, s.psnr);
+            eprintln!(
+                "t={:.0}s step={} psnr={:.2} samples/ray={:.1} rays/s={:.0}",
+                s.seconds, s.step, s.psnr, s.samples_per_ray, s.rays_per_second
+            );
             last = s.seconds + 20.0;
         }
     });
@@ -98,7 +118,8 @@ fn main() -> objnerf::Result<()> {
     let ev = evaluate(&fitted.trainer.field, &RenderOptions::default(), &views);
     let out = serde_json::json!({
         "downscale": downscale, "train_s": train_s, "cpu_s": bench::cpu_seconds() - cpu0,
-        "steps": fitted.report.run.steps, "heldout_psnr": ev.psnr, "heldout_ssim": ev.ssim,
+        "steps": fitted.report.run.steps, "rays_per_s": fitted.report.run.rays_per_second,
+        "mean_samples_per_ray": spr / nspr.max(1) as f64, "heldout_psnr": ev.psnr, "heldout_ssim": ev.ssim,
         "finest": fitted.report.finest, "occupied_cells": fitted.report.occupied_cells,
         "memory_mb": fitted.report.memory_bytes >> 20,
         "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),

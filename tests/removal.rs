@@ -78,6 +78,29 @@ fn forward_demo_writes_llff_poses_of_the_same_cameras() {
     }
 }
 
+/// An LLFF capture is its poses and bounds alone (no sparse model): a scene field still trains
+/// on it at the defaults, its NDC near plane and its stereo depth ranges from the bounds.
+#[test]
+fn llff_poses_alone_train_a_scene_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let fwd = demo(dir.path(), DemoLayout::Forward, 10);
+    let llff = Scene::load(&fwd.join("poses_bounds.npy")).unwrap();
+    assert!(llff.points.is_empty());
+    let mut opts = objnerf::fit::SceneFitOptions::default();
+    opts.fit.downscale = 4;
+    opts.fit.steps = 20;
+    let mut fit = objnerf::fit::SceneFit::new(&llff, &opts).unwrap();
+    assert!(
+        fit.space_choice().contains("forward") && fit.space_choice().contains("depth bound"),
+        "{}",
+        fit.space_choice()
+    );
+    fit.train(&opts.fit.stop_rule(), &mut |_| {});
+    let report = fit.finish().report;
+    assert!(report.depth_targets > 0, "no stereo depth without points");
+    assert_eq!(report.run.steps, 20);
+}
+
 /// `truth/removed/mug` is the photo wherever the mug is not seen, and differs where it is;
 /// the pair folders exist.
 #[test]

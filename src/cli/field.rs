@@ -1,9 +1,9 @@
 //! `objnerf train`, `objnerf render` and `objnerf eval`: one field at a time.
 
-use super::training::TimeBudgetArg;
+use super::training::{HoldOutArg, TimeBudgetArg};
 use crate::cli::progress_bars::Bars;
 use clap::Args;
-use objnerf::field::holdout::held_out_views;
+use objnerf::field::holdout::{held_out_views, HoldOut};
 use objnerf::field::io;
 use objnerf::field::{eval::evaluate_model, MaskSource, SetupConfig};
 use objnerf::fit::{FitOptions, SceneFitOptions};
@@ -85,10 +85,9 @@ pub struct TrainCmd {
     /// Continue training this model.
     #[arg(long)]
     resume: Option<PathBuf>,
-    /// Leave every N-th view out of training (views N/2, N/2 + N, ...; 0: none), for `eval
-    /// --hold-out-every N`.
-    #[arg(long, default_value_t = 0)]
-    hold_out_every: usize,
+    /// The views left out of training, for `eval` with the same rule.
+    #[command(flatten)]
+    hold_out: HoldOutArg,
 }
 
 impl TrainCmd {
@@ -118,7 +117,7 @@ impl TrainCmd {
                 memory_budget: self.memory_mb << 20,
                 ..Default::default()
             },
-            exclude_views: held_out_views(scene, self.hold_out_every),
+            exclude_views: held_out_views(scene, self.hold_out.or(HoldOut::None)),
             mask_band: self.mask_band,
         }
     }
@@ -242,9 +241,9 @@ pub struct EvalCmd {
     masks: Option<String>,
     #[arg(long)]
     downscale: Option<u32>,
-    /// Score only the views `train --hold-out-every N` left out.
-    #[arg(long, default_value_t = 0)]
-    hold_out_every: usize,
+    /// Score only the views `train` left out with the same rule.
+    #[command(flatten)]
+    hold_out: HoldOutArg,
     #[command(flatten)]
     pixels: PixelSamples,
     #[arg(long)]
@@ -266,7 +265,7 @@ impl EvalCmd {
             &scene,
             &masks,
             self.downscale,
-            self.hold_out_every,
+            self.hold_out.or(HoldOut::None),
             n,
         )?;
         if self.json {

@@ -1,6 +1,6 @@
 //! `objnerf remove`: objects taken out of a scene (a scene field trained with the reverse alpha).
 
-use super::training::TimeBudgetArg;
+use super::training::{HoldOutArg, TimeBudgetArg};
 use crate::cli::progress_bars::Bars;
 use clap::Args;
 use objnerf::field::SetupConfig;
@@ -41,9 +41,9 @@ pub struct RemoveCmd {
     /// Grow the removed masks by this many pixels before they are left out.
     #[arg(long, default_value_t = SceneFitOptions::default().dilate_px)]
     dilate: u32,
-    /// Leave every N-th view out of training and score it (0: none).
-    #[arg(long, default_value_t = RemoveOptions::default().hold_out_every)]
-    hold_out_every: usize,
+    /// The views left out of training and scored.
+    #[command(flatten)]
+    hold_out: HoldOutArg,
     /// How the part of the hole no view saw is filled: pattern (the repeating pattern around it
     /// continued where there is one, smooth elsewhere), smooth (harmonic) or none.
     #[arg(long, default_value_t = HoleFill::default())]
@@ -69,7 +69,7 @@ impl RemoveCmd {
         RemoveOptions {
             objects: self.objects.clone(),
             field,
-            hold_out_every: self.hold_out_every,
+            hold_out: self.hold_out.or(defaults.hold_out),
             fill: self.fill,
             overwrite: self.overwrite,
             ..defaults

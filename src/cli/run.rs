@@ -2,10 +2,11 @@
 //! against its truth).
 
 use super::segment::{prompts_in_order, ClickArgs};
-use super::training::TimeBudgetArg;
+use super::training::{HoldOutArg, TimeBudgetArg};
 use super::{print_json, print_warnings};
 use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
+use objnerf::field::holdout::HoldOut;
 use objnerf::mesh::from_field::FieldMeshOptions;
 use objnerf::models::ModelsDir;
 use objnerf::pipeline::demo::{prepare_demo, run_demo};
@@ -51,10 +52,10 @@ pub struct ExtractCmd {
     /// Turntable frames per object.
     #[arg(long, default_value_t = TurntableOptions::default().frames)]
     pub frames: usize,
-    /// Leave every N-th view out of training (views N/2, N/2 + N, ...), to score the field on
-    /// them; 0: keep a few ok views back to check each field on instead.
-    #[arg(long, default_value_t = ExtractOptions::default().hold_out_every)]
-    pub hold_out_every: usize,
+    /// The views left out of training to score each field on (none: a few ok views are kept
+    /// back to check each field on instead).
+    #[command(flatten)]
+    pub hold_out: HoldOutArg,
     /// Replace the run folder if it exists.
     #[arg(long)]
     pub overwrite: bool,
@@ -67,7 +68,7 @@ impl ExtractCmd {
     pub(super) fn options(&self) -> ExtractOptions {
         let mut o = ExtractOptions {
             overwrite: self.overwrite,
-            hold_out_every: self.hold_out_every,
+            hold_out: self.hold_out.or(ExtractOptions::default().hold_out),
             ..Default::default()
         };
         o.fit.downscale = self.downscale;
@@ -150,7 +151,7 @@ fn print_summary(r: &ExtractReport) {
 fn demo_options() -> ExtractOptions {
     let mut o = ExtractOptions {
         overwrite: true,
-        hold_out_every: 6,
+        hold_out: HoldOut::Every(6),
         ..Default::default()
     };
     o.fit.time_budget = Some(90.0);

@@ -1,7 +1,38 @@
 //! What every command that trains a field shares on the command line: `--time-budget`, with one
-//! meaning in `train`, `extract`, `remove` and `demo`.
+//! meaning in `train`, `extract`, `remove` and `demo`, and the views held out of training
+//! (`--hold-out`, `--hold-out-every`), with one meaning in `train`, `eval`, `extract` and
+//! `remove`.
 
 use clap::Args;
+use objnerf::field::holdout::HoldOut;
+
+/// `--hold-out RULE` or `--hold-out-every N`: the views left out of training, to score on.
+#[derive(Args, Clone, Copy, Debug, Default)]
+pub struct HoldOutArg {
+    /// Leave views out of training to score on: 'llff' (views 0, 8, 16, ..., as the LLFF
+    /// figures in the literature are scored), N (every N-th view, as --hold-out-every N) or
+    /// 'none'.
+    #[arg(
+        long = "hold-out",
+        value_name = "llff|N|none",
+        conflicts_with = "hold_out_every"
+    )]
+    rule: Option<HoldOut>,
+    /// Leave every N-th view out of training (views N/2, N/2 + N, ...; 0: none).
+    #[arg(long, value_name = "N")]
+    hold_out_every: Option<usize>,
+}
+
+impl HoldOutArg {
+    /// The rule given, else `default` (the command's).
+    pub fn or(self, default: HoldOut) -> HoldOut {
+        match (self.rule, self.hold_out_every) {
+            (Some(r), _) => r,
+            (None, Some(n)) => HoldOut::every(n),
+            (None, None) => default,
+        }
+    }
+}
 
 /// `--time-budget`: seconds of training, or `none` for no limit; absent, the command's default.
 #[derive(Args, Clone, Copy, Debug, Default)]

@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::field::eval::evaluate;
-use crate::field::holdout::{depth_error, split_every, DepthError};
+use crate::field::holdout::{depth_error, split, DepthError, HoldOut};
 use crate::field::session::{prepare, RunSummary, SetupConfig, SetupReport, StopRule};
 use crate::field::{load_views, MaskSource, RenderOptions, TrainConfig, View};
 use crate::supervision::add_depth_targets;
@@ -17,7 +17,7 @@ use std::path::Path;
 #[derive(Clone, Debug)]
 pub struct DemoRun {
     pub downscale: u32,
-    /// Hold out every this many views (see [`split_every`]).
+    /// Hold out every this many views ([`HoldOut::Every`]).
     pub every: usize,
     pub depth: DepthMode,
     pub setup: SetupConfig,
@@ -82,8 +82,8 @@ pub fn demo_object(scene_dir: &Path, object: &str, run: &DemoRun) -> Result<Demo
     let mut scoring = views.clone();
     add_dense_depth(&mut scoring, &scene, run.downscale)?;
     add_depth_targets(&mut views, &scene, run.depth, run.downscale)?;
-    let (train, _) = split_every(views, run.every);
-    let (_, test) = split_every(scoring, run.every);
+    let (train, _) = split(views, HoldOut::Every(run.every.max(2)));
+    let (_, test) = split(scoring, HoldOut::Every(run.every.max(2)));
     let points = crate::field::bounds::points_in_masks(&scene, &train, run.downscale);
     let (mut trainer, rays, setup) = prepare(&train, &points, &run.setup, run.train.clone(), None)?;
     let summary = crate::field::session::run(&mut trainer, &train, &rays, &run.stop, |_| {});

@@ -210,6 +210,7 @@ pub fn write_demo_scene(opts: &DemoOptions, out: &Path) -> Result<DemoSummary> {
                 mask_path: None,
                 depth_path: Some(writer::depth_paths(&root, stem).0),
                 features,
+                depth_bounds: None,
             }
         })
         .collect();

@@ -505,6 +505,7 @@ fn export_scene(plan: &Plan, written: &[FrameOut], root: &Path) -> Scene {
                 mask_path: f.mask.as_ref().map(|m| root.join(m)),
                 depth_path: f.depth.as_ref().map(|d| root.join(d)),
                 features: Vec::new(),
+                depth_bounds: None,
             }
         })
         .collect();

@@ -1,7 +1,7 @@
 //! Rendering whole views (RGB, depth, alpha; multi-threaded by rows) and scoring them: PSNR and
 //! SSIM against the truth composited on white (the NeRF-synthetic protocol).
 
-use super::holdout::is_held_out;
+use super::holdout::HoldOut;
 use super::io::Model;
 use super::model::Field;
 use super::view::{load_views, MaskSource, RayCamera, View};
@@ -221,8 +221,8 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
     }
 }
 
-/// Score a model on a scene's views (only those [`is_held_out`] by `held_out_every`, when not
-/// 0), with `masks` as the truth's alpha, at `downscale` (default: the one it was trained at),
+/// Score a model on a scene's views (only those `hold_out` leaves out of training, when it
+/// holds any out), with `masks` as the truth's alpha, at `downscale` (default: the one it was trained at),
 /// rendering with the default sampling (half-voxel steps) however coarsely training sampled,
 /// and `pixel_samples` x `pixel_samples` rays a pixel ([`RenderOptions::pixel_samples`]).
 pub fn evaluate_model(
@@ -230,16 +230,12 @@ pub fn evaluate_model(
     scene: &Scene,
     masks: &MaskSource,
     downscale: Option<u32>,
-    held_out_every: usize,
+    hold_out: HoldOut,
     pixel_samples: u32,
 ) -> Result<EvalReport> {
     let mut views = load_views(scene, masks, downscale.unwrap_or_else(|| model.downscale()))?;
-    if held_out_every > 0 {
-        let mut i = 0;
-        views.retain(|_| {
-            i += 1;
-            is_held_out(i - 1, held_out_every)
-        });
+    if !hold_out.is_none() {
+        views = super::holdout::split(views, hold_out).1;
     }
     let opt = RenderOptions {
         pixel_samples,

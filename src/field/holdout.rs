@@ -7,19 +7,76 @@ use crate::field::march::{forward, RenderOptions};
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Whether view `i` is held out when every `every`-th view is (0: none): views every/2,
-/// every/2 + every, ... (the first view, where a demo click is, stays in training; `every` = 6
-/// holds out 6 of the demo scene's 36 views, spread around the ring).
-pub fn is_held_out(i: usize, every: usize) -> bool {
-    every > 0 && i % every == every / 2
+/// Which views of a capture are left out of training, to score a field on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase", tag = "rule", content = "n")]
+pub enum HoldOut {
+    /// Every view trains.
+    #[default]
+    None,
+    /// Every n-th view, starting at n/2: views n/2, n/2 + n, ... (the first view, where a demo
+    /// click is, stays in training; 6 holds out 6 of the demo scene's 36 views, spread around
+    /// the ring). 0 and 1 are taken as none.
+    Every(usize),
+    /// The LLFF convention: views 0, 8, 16, ... (NeRF's `llffhold = 8`, as the LLFF figures in
+    /// the literature are scored).
+    Llff,
 }
 
-/// Split views into (train, held out) by [`is_held_out`] (`every` at least 2).
-pub fn split_every(views: Vec<View>, every: usize) -> (Vec<View>, Vec<View>) {
-    let every = every.max(2);
+impl HoldOut {
+    /// Every `n`-th view (0: none).
+    pub fn every(n: usize) -> HoldOut {
+        if n == 0 {
+            HoldOut::None
+        } else {
+            HoldOut::Every(n)
+        }
+    }
+
+    /// Whether view `i` (in the scene's order) is held out.
+    pub fn holds_out(&self, i: usize) -> bool {
+        match *self {
+            HoldOut::None => false,
+            HoldOut::Every(n) => n > 1 && i % n == n / 2,
+            HoldOut::Llff => i % 8 == 0,
+        }
+    }
+
+    pub fn is_none(&self) -> bool {
+        matches!(self, HoldOut::None | HoldOut::Every(0) | HoldOut::Every(1))
+    }
+}
+
+impl std::str::FromStr for HoldOut {
+    type Err = String;
+
+    /// `none`, `llff`, or a number n (every n-th view).
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "none" | "0" => Ok(HoldOut::None),
+            "llff" => Ok(HoldOut::Llff),
+            n => n.parse::<usize>().map(HoldOut::every).map_err(|_| {
+                format!("'{s}' is not a hold-out rule: 'llff' (views 0, 8, 16, ...), 'none', or N (every N-th view)")
+            }),
+        }
+    }
+}
+
+impl std::fmt::Display for HoldOut {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HoldOut::None => write!(f, "none"),
+            HoldOut::Every(n) => write!(f, "{n}"),
+            HoldOut::Llff => write!(f, "llff"),
+        }
+    }
+}
+
+/// Split views into (train, held out) by `hold_out`.
+pub fn split(views: Vec<View>, hold_out: HoldOut) -> (Vec<View>, Vec<View>) {
     let (mut train, mut test) = (Vec::new(), Vec::new());
     for (i, v) in views.into_iter().enumerate() {
-        if is_held_out(i, every) {
+        if hold_out.holds_out(i) {
             test.push(v);
         } else {
             train.push(v);
@@ -103,14 +160,35 @@ pub fn depth_error(f: &Field, opt: &RenderOptions, views: &[View]) -> DepthError
     }
 }
 
-/// The names of every `every`-th view of `scene` (views every/2, every/2 + every, ...; 0:
-/// none), to hold out of training.
-pub fn held_out_views(scene: &crate::scene::Scene, every: usize) -> Vec<String> {
+/// The names of the views of `scene` that `hold_out` leaves out of training.
+pub fn held_out_views(scene: &crate::scene::Scene, hold_out: HoldOut) -> Vec<String> {
     scene
         .images
         .iter()
         .enumerate()
-        .filter(|(i, _)| is_held_out(*i, every))
+        .filter(|(i, _)| hold_out.holds_out(*i))
         .map(|(_, im)| im.name.clone())
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hold_out_rules_pick_the_views_they_name() {
+        let picked = |h: HoldOut| (0..20).filter(|&i| h.holds_out(i)).collect::<Vec<_>>();
+        assert_eq!(picked(HoldOut::Llff), vec![0, 8, 16]);
+        assert_eq!(picked(HoldOut::Every(6)), vec![3, 9, 15]);
+        assert!(picked(HoldOut::None).is_empty());
+        assert!(picked(HoldOut::every(0)).is_empty());
+        assert_eq!("llff".parse::<HoldOut>(), Ok(HoldOut::Llff));
+        assert_eq!("LLFF".parse::<HoldOut>(), Ok(HoldOut::Llff));
+        assert_eq!("8".parse::<HoldOut>(), Ok(HoldOut::Every(8)));
+        assert_eq!("none".parse::<HoldOut>(), Ok(HoldOut::None));
+        assert!("every other"
+            .parse::<HoldOut>()
+            .unwrap_err()
+            .contains("llff"));
+    }
 }

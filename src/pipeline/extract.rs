@@ -16,7 +16,7 @@
 //! ```
 
 use crate::error::{Error, Result};
-use crate::field::holdout::is_held_out;
+use crate::field::holdout::HoldOut;
 use crate::field::MaskSource;
 use crate::fit::object_checks::HeldOutCheck;
 use crate::fit::{fit_object, model_notes, FieldKind, FitOptions, TrainReport};
@@ -47,10 +47,9 @@ pub struct ExtractOptions {
     pub mesh: FieldMeshOptions,
     pub turntable: TurntableOptions,
     pub overwrite: bool,
-    /// Hold out every n-th view from training, for evaluation ([`is_held_out`]; 0: keep
-    /// `check_views` back instead).
-    pub hold_out_every: usize,
-    /// Without `hold_out_every`: at most this many ok views kept out of training to check the
+    /// Views held out of training, for evaluation (none: `check_views` kept back instead).
+    pub hold_out: HoldOut,
+    /// Without `hold_out`: at most this many ok views kept out of training to check the
     /// field on ([`crate::pipeline::extract_checks::check_views`]).
     pub check_views: usize,
 }
@@ -67,7 +66,7 @@ impl Default for ExtractOptions {
             mesh: FieldMeshOptions::default(),
             turntable: TurntableOptions::default(),
             overwrite: false,
-            hold_out_every: 0,
+            hold_out: HoldOut::None,
             check_views: 3,
         }
     }
@@ -228,7 +227,7 @@ fn extract_object(
     progress: &dyn Progress,
 ) -> Result<(ObjectReport, Mesh, Vec<Warning>)> {
     let dir = run.root.join(&obj.name);
-    let summary = summarise(obj, opts.hold_out_every, opts.check_views);
+    let summary = summarise(obj, opts.hold_out, opts.check_views);
     if summary.num_ok == 0 {
         let sheet = run
             .root
@@ -316,12 +315,12 @@ fn extract_object(
     Ok((report, mesh, warnings))
 }
 
-/// Which views an object trains on: ok views, less every `hold_out_every`-th held out for
-/// evaluation ([`is_held_out`]), or without it up to `check_views` kept back for the field's
+/// Which views an object trains on: ok views, less those `hold_out` holds out for
+/// evaluation, or without it up to `check_views` kept back for the field's
 /// self-check ([`check_views`]).
 fn summarise(
     obj: &ObjectSegmentation,
-    hold_out_every: usize,
+    hold_out: HoldOut,
     most_check_views: usize,
 ) -> SegmentationSummary {
     let names = |keep: &dyn Fn(usize, ViewStatus) -> bool| -> Vec<String> {
@@ -333,7 +332,6 @@ fn summarise(
             .collect()
     };
     let count = |s| obj.views.iter().filter(|v| v.status == s).count();
-    let n = hold_out_every;
     SegmentationSummary {
         num_views: obj.views.len(),
         num_ok: count(ViewStatus::Ok),
@@ -342,8 +340,8 @@ fn summarise(
         num_points: obj.points.len(),
         ok_views: names(&|_, s| s == ViewStatus::Ok),
         excluded: names(&|_, s| s != ViewStatus::Ok),
-        held_out: if n > 0 {
-            names(&|i, s| is_held_out(i, n) && s == ViewStatus::Ok)
+        held_out: if !hold_out.is_none() {
+            names(&|i, s| hold_out.holds_out(i) && s == ViewStatus::Ok)
         } else {
             check_views(obj, most_check_views)
         },

@@ -17,7 +17,7 @@
 use crate::error::{Error, Result};
 use crate::field::eval::render_all;
 use crate::field::eval::{psnr, Rendered};
-use crate::field::holdout::held_out_views;
+use crate::field::holdout::{held_out_views, HoldOut};
 use crate::field::session::StopRule;
 use crate::field::RenderOptions;
 use crate::fit::scene_checks::{check_scene_fit, measure_scene_fit};
@@ -44,8 +44,8 @@ pub struct RemoveOptions {
     pub objects: Vec<String>,
     /// The scene field's training (its `removed` masks and `exclude_views` are filled in here).
     pub field: SceneFitOptions,
-    /// Hold out every n-th view from training, for scoring ([`crate::field::holdout::is_held_out`]; 0: none).
-    pub hold_out_every: usize,
+    /// Views held out of training, for scoring.
+    pub hold_out: HoldOut,
     /// Fill the part of the hole no view saw (see the module notes).
     pub fill: HoleFill,
     /// Fraction of the steps (and of the time budget) trained before the removed volume is
@@ -61,7 +61,7 @@ impl Default for RemoveOptions {
         RemoveOptions {
             objects: Vec::new(),
             field,
-            hold_out_every: 0,
+            hold_out: HoldOut::None,
             fill: HoleFill::default(),
             fill_after: 0.8,
             overwrite: false,
@@ -143,7 +143,7 @@ pub fn remove(
     let run = SegmentRun::open(segment_dir)?;
     check_same_views(scene, &run)?;
     let removed = removed_masks(scene, &run, &opts.objects)?;
-    let held_out = held_out_views(scene, opts.hold_out_every);
+    let held_out = held_out_views(scene, opts.hold_out);
     let mut field_opts = opts.field.clone();
     field_opts.exclude_points = removed_points(scene, &removed);
     field_opts.removed = Some(Arc::new(removed.clone()));

@@ -201,6 +201,7 @@ mod tests {
                 mask_path: None,
                 depth_path: None,
                 features,
+                depth_bounds: None,
             });
         }
         Scene {

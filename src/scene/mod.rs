@@ -62,6 +62,10 @@ pub struct ImageView {
     pub mask_path: Option<PathBuf>,
     pub depth_path: Option<PathBuf>,
     pub features: Vec<Feature>,
+    /// The nearest and farthest depth of the scene in this view where the source gives them
+    /// (LLFF's `poses_bounds.npy`): a capture without a sparse model still bounds its depth.
+    #[serde(default)]
+    pub depth_bounds: Option<[f64; 2]>,
 }
 
 /// Camera intrinsics with the COLMAP id they were read under.

@@ -340,9 +340,17 @@ fn forward_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> Re
         .iter()
         .map(|im| (im.pose.center() - center).length())
         .fold(0.0, f64::max);
-    let near = match quantile(depths, 0.01) {
-        Some(z) => 0.8 * z,
-        None => (0.1 * spread).max(1e-3),
+    // Without a sparse model, the nearest of the depth bounds the capture gives (LLFF; NeRF puts
+    // its near plane at 0.75 of it).
+    let nearest_bound = scene
+        .images
+        .iter()
+        .filter_map(|im| im.depth_bounds.map(|b| b[0]))
+        .reduce(f64::min);
+    let (near, near_from) = match (quantile(depths, 0.01), nearest_bound) {
+        (Some(z), _) => (0.8 * z, "the nearest points"),
+        (None, Some(b)) => (0.8 * b, "the capture's nearest depth bound"),
+        (None, None) => ((0.1 * spread).max(1e-3), "a tenth of the cameras' spread"),
     };
     let voxel_xy = 2.0 / w as f32 * downscale.max(1) as f32;
     let z_scale = NDC_DEPTH_CELLS * voxel_xy / 2.0;
@@ -363,7 +371,7 @@ fn forward_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> Re
         // The NDC grid starts at the near plane, in front of every camera.
         near_clip: 0.0,
         why: format!(
-            "{reason}; NDC of the mean camera, near plane {near:.3} (the nearest points), depth axis sampled in {NDC_DEPTH_CELLS} cells of disparity"
+            "{reason}; NDC of the mean camera, near plane {near:.3} ({near_from}), depth axis sampled in {NDC_DEPTH_CELLS} cells of disparity"
         ),
         layout: l,
     })

@@ -329,6 +329,7 @@ mod tests {
                 mask_path: None,
                 depth_path,
                 features,
+                depth_bounds: None,
             }],
             points: Vec::new(),
             depth_scale: 1000.0,

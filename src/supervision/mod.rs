@@ -60,8 +60,13 @@ pub fn add_depth_targets(
             add_sparse_depth(views, scene, downscale)? + spread_sparse_depth(views)
         }
         DepthMode::Stereo => {
-            add_sparse_depth(views, scene, downscale)?
-                + add_stereo_depth(views, scene, &StereoOptions::default())
+            // A capture without a sparse model (LLFF's poses_bounds.npy) still has the photos.
+            let sparse = if scene.points.is_empty() {
+                0
+            } else {
+                add_sparse_depth(views, scene, downscale)?
+            };
+            sparse + add_stereo_depth(views, scene, &StereoOptions::default())
         }
     })
 }

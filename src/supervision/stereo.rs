@@ -93,7 +93,8 @@ pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions)
     added
 }
 
-/// The z-depths of the sparse points that view `i` tracks (2nd-98th percentiles), widened.
+/// The z-depths of the sparse points that view `i` tracks (2nd-98th percentiles), else the
+/// capture's depth bounds for it, widened.
 fn depth_range(scene: &Scene, i: usize, margin: f32) -> Option<(f32, f32)> {
     let pose = &scene.images[i].pose;
     let mut z: Vec<f64> = scene
@@ -104,7 +105,9 @@ fn depth_range(scene: &Scene, i: usize, margin: f32) -> Option<(f32, f32)> {
         .filter(|&z| z > 0.0)
         .collect();
     if z.len() < 10 {
-        return None;
+        // No sparse model: the depth bounds the capture gives (LLFF), else nothing to sweep.
+        let [near, far] = scene.images[i].depth_bounds?;
+        return Some(((near as f32) / margin, (far as f32) * margin));
     }
     z.sort_by(f64::total_cmp);
     let (lo, hi) = (z[z.len() / 50], z[z.len() - 1 - z.len() / 50]);

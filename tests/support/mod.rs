@@ -62,6 +62,7 @@ pub fn tiny_scene(dir: &Path) -> Scene {
                     point: None,
                 })
                 .collect(),
+            depth_bounds: None,
         })
         .collect();
     let t = |image, feature| TrackElement { image, feature };

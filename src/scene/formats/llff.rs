@@ -71,6 +71,8 @@ pub fn parse(dir: &Path, npy_bytes: &[u8]) -> Result<Scene> {
             mask_path: None,
             depth_path: None,
             features: Vec::new(),
+            depth_bounds: (row[15] > 0.0 && row[16] > row[15] && row[16].is_finite())
+                .then_some([row[15], row[16]]),
         });
     }
     let scene = Scene {

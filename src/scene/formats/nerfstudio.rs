@@ -160,6 +160,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Scene> {
             mask_path: fr.mask_path.as_deref().map(resolve),
             depth_path: fr.depth_file_path.as_deref().map(resolve),
             features: Vec::new(),
+            depth_bounds: None,
         });
     }
     let applied_transform = match &tf.applied_transform {

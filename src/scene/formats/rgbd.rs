@@ -47,6 +47,7 @@ pub fn read_redwood(dir: &Path) -> Result<Scene> {
             mask_path: None,
             depth_path: Some(dir.join(depth)),
             features: Vec::new(),
+            depth_bounds: None,
         })
         .collect();
     let scene = Scene {

@@ -243,6 +243,7 @@ impl RawModel {
                 mask_path: None,
                 depth_path: None,
                 features,
+                depth_bounds: None,
             });
         }
         let mut points = Vec::with_capacity(self.points.len());
