@@ -2,7 +2,8 @@
 //! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
-//! held out), SF_NET, SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C, SF_FREE.
+//! held out), SF_NET, SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C, SF_FREE, SF_DEPTH_W (a ring's or
+//! unbounded capture's), SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's).
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
 
@@ -62,6 +63,7 @@ fn main() -> objnerf::Result<()> {
             distortion_weight: env("SF_DIST").unwrap_or(d.train.distortion_weight),
             prune_alpha: env("SF_PRUNE_ALPHA").unwrap_or(d.train.prune_alpha),
             free_space_weight: env("SF_FREE").unwrap_or(d.train.free_space_weight),
+            depth_weight: env("SF_DEPTH_W").unwrap_or(d.train.depth_weight),
             tv_density: env("SF_TV_D").unwrap_or(d.train.tv_density),
             tv_color: env("SF_TV_C").unwrap_or(d.train.tv_color),
             batch: env("SF_BATCH").unwrap_or(d.train.batch),
@@ -71,6 +73,11 @@ fn main() -> objnerf::Result<()> {
         },
         ..Default::default()
     };
+    // A forward capture's depth settings (SF_FWD_*).
+    let f = &mut opts.forward;
+    f.depth_weight = env("SF_FWD_DEPTH_W").unwrap_or(f.depth_weight);
+    f.free_space_weight = env("SF_FWD_FREE").unwrap_or(f.free_space_weight);
+    f.seed_from_depth = env("SF_FWD_SEED").unwrap_or(f.seed_from_depth);
     // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").
     if let Ok(st) = std::env::var("SF_STAGES") {
         opts.train.stages = st

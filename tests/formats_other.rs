@@ -77,7 +77,10 @@ fn llff_poses_and_scaled_focal() {
     assert_eq!((cam.width, cam.height), (16, 12));
     assert_eq!(cam.params, vec![20.0, 20.0, 8.0, 6.0]);
     // The near and far bounds are kept: without a sparse model they bound stereo and NDC.
-    assert!(scene.images.iter().all(|im| im.depth_bounds == Some([0.5, 9.0])));
+    assert!(scene
+        .images
+        .iter()
+        .all(|im| im.depth_bounds == Some([0.5, 9.0])));
     for (im, p) in scene.images.iter().zip(&poses) {
         let (a, b) = (im.pose.c2w_opencv(), p.c2w_opencv());
         for r in 0..3 {

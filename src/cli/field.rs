@@ -88,6 +88,9 @@ pub struct TrainCmd {
     /// The views left out of training, for `eval` with the same rule.
     #[command(flatten)]
     hold_out: HoldOutArg,
+    /// Print the training report (with the process's peak RSS) to stdout as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 impl TrainCmd {
@@ -133,6 +136,11 @@ impl TrainCmd {
             None => FieldTarget::Scene { space: self.space },
         };
         let report = train(&scene, &target, &opts, &self.out, &Bars::default())?;
+        if self.json {
+            let mut v = serde_json::to_value(&report).expect("reports serialise");
+            v["peak_rss_mib"] = objnerf::util::mem::peak_rss_mib().into();
+            super::print_json(&v);
+        }
         let r = &report;
         if let Some(s) = &r.setup {
             eprintln!(

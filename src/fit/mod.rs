@@ -222,6 +222,35 @@ pub struct SceneFitOptions {
     /// The trainer's settings for a scene field ([`scene_train_config`]); its seed and steps
     /// are `fit`'s.
     pub train: TrainConfig,
+    /// How depth holds a forward-facing capture's field (NDC space).
+    pub forward: ForwardDepth,
+}
+
+/// A forward-facing capture's depth settings. Its cameras stand a few centimetres apart, so
+/// colour alone barely tells a near surface from a far one: trained as a ring's field is, fern
+/// (LLFF) put an opaque screen at the near plane (samples a ray 2-5, held out 14.6-15.4 dB in 150
+/// s, whatever the depth weight up to 1e-4, and without depth). What holds it: surfaces started
+/// at the stereo depth, depth weighed 50x a ring's, and the free-space loss in front of the same
+/// targets. Fern in 150 s: 19.23 dB / SSIM 0.47 before (depth then weighed in world units, which
+/// held the field by accident, at 20 k rays/s), 20.51 / 0.665 with all three at 118 k rays/s;
+/// on the ring they cost 2 dB (29.73 -> 27.77 in 150 s), so they are a forward capture's only
+/// (examples/results/scene_field.md, "Forward captures").
+#[derive(Clone, Debug)]
+pub struct ForwardDepth {
+    pub depth_weight: f32,
+    pub free_space_weight: f32,
+    /// Start surfaces at the depth targets as well as at the sparse points.
+    pub seed_from_depth: bool,
+}
+
+impl Default for ForwardDepth {
+    fn default() -> Self {
+        ForwardDepth {
+            depth_weight: 0.05,
+            free_space_weight: 1.0,
+            seed_from_depth: true,
+        }
+    }
 }
 
 /// The trainer's settings for a scene field, where they differ from an object's.
@@ -238,10 +267,7 @@ pub fn scene_train_config() -> TrainConfig {
         // opaque per step (the trainer's default, as object fields prune) keeps the grid near
         // the surfaces (demo at 160x120, 2000 steps: the same held-out PSNR, 24.3 against 24.0
         // dB, in 60 instead of 113 CPU-s).
-        //
-        // The free-space loss was measured on object fields only, whose targets are
-        // triangulated points; a scene field's plane-sweep targets can be off by more than its
-        // margin, which would carve true surfaces.
+        // (A forward capture's depth settings are [`ForwardDepth`]'s.)
         free_space_weight: 0.0,
         ..TrainConfig::default()
     }
@@ -267,8 +293,27 @@ impl Default for SceneFitOptions {
             dilate_px: 1,
             exclude_points: Default::default(),
             train: scene_train_config(),
+            forward: ForwardDepth::default(),
         }
     }
+}
+
+/// Where the training views' depth targets put a surface, with the pixel's colour: a scene
+/// field's surfaces start wherever stereo (or depth images) found one, not only at the sparse
+/// points (a capture with poses alone, LLFF's, has none).
+fn depth_seeds(views: &[View]) -> Vec<(glam::Vec3, [u8; 3])> {
+    let mut seeds = Vec::new();
+    for v in views {
+        let Some(depth) = &v.depth else { continue };
+        for (i, &t) in depth.iter().enumerate() {
+            if t > 0.0 {
+                let (o, d) = v.ray(i as u32);
+                let p = v.rgba[i];
+                seeds.push((o + d * t, [p[0], p[1], p[2]]));
+            }
+        }
+    }
+    seeds
 }
 
 /// Training views a whole-scene field is checked on after training ([`SceneFit::check_fit`]).
@@ -314,18 +359,26 @@ impl SceneFit {
         }
         // Depth targets where the loss applies (a removed object's points give none).
         let depth_targets = depth_and_training_views(&mut views, scene, fit)?;
-        let cfg = TrainConfig {
+        let mut cfg = TrainConfig {
             seed: fit.seed,
             steps: fit.schedule_steps(),
             ..opts.train.clone()
         };
-        let seeds: Vec<(glam::Vec3, [u8; 3])> = scene
+        let forward = matches!(space.space, crate::space::Space::Ndc(_));
+        if forward {
+            cfg.depth_weight = opts.forward.depth_weight;
+            cfg.free_space_weight = opts.forward.free_space_weight;
+        }
+        let mut seeds: Vec<(glam::Vec3, [u8; 3])> = scene
             .points
             .iter()
             .enumerate()
             .filter(|(i, _)| !opts.exclude_points.contains(i))
             .map(|(_, p)| (p.xyz.as_vec3(), p.rgb))
             .collect();
+        if forward && opts.forward.seed_from_depth {
+            seeds.extend(depth_seeds(&views));
+        }
         let (trainer, rays, setup) = prepare_scene(&views, &space, &fit.setup, cfg, &seeds)?;
         Ok(SceneFit {
             trainer,

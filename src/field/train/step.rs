@@ -76,7 +76,7 @@ impl StepContext<'_> {
             let view_d = jittered(d, cfg.view_jitter, &mut r);
             let out = forward_seen_from(field, &cfg.render, o, d, view_d, jitter, bg, &mut samples);
             nsamp += samples.len();
-            let l = self.ray_loss(view, px, bg, edge, &out);
+            let l = self.ray_loss(view, px, (o, d), bg, edge, &out);
             mse += l.sq_err;
             loss += l.loss;
             if samples.is_empty() {
@@ -91,7 +91,9 @@ impl StepContext<'_> {
             }
             let target = view.depth.as_ref().map_or(0.0, |d| d[px as usize]);
             if cfg.free_space_weight > 0.0 && target > 0.0 {
-                let front = target - cfg.free_space_margin * unit;
+                // The margin in finest voxels, as world length at the target.
+                let per_world = field.space.space_per_world(o, d, target).max(1e-9);
+                let front = target - cfg.free_space_margin * unit / per_world;
                 let k = cfg.free_space_weight * self.inv_b;
                 loss += (free_space(&samples, front, k, &mut g_w) / self.inv_b) as f64;
             }
@@ -142,6 +144,7 @@ impl StepContext<'_> {
         &self,
         view: &View,
         px: u32,
+        (o, d): (glam::Vec3, glam::Vec3),
         bg: [f32; 3],
         edge: Option<&EdgePixel>,
         out: &RayOut,
@@ -171,7 +174,11 @@ impl StepContext<'_> {
             // demo's surfaces came out a voxel too far). Rays still mostly transparent are left
             // to the alpha loss.
             if dt > 0.0 && cfg.depth_weight > 0.0 && out.alpha > MIN_DEPTH_ALPHA {
-                let inv_voxel = 1.0 / self.field.config.base_voxel;
+                // The error in finest voxels at the target (world units in a box; NDC and the
+                // contraction shrink distance, and world units there would weigh a far target's
+                // stereo error thousands of times a near one's).
+                let inv_voxel =
+                    self.field.space.space_per_world(o, d, dt) / self.field.config.base_voxel;
                 let dn = out.depth / out.alpha;
                 let ed = (dn - dt) * inv_voxel;
                 let g = 2.0 * cfg.depth_weight * ed * inv_voxel * inv_b;
