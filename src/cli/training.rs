@@ -5,6 +5,7 @@
 
 use clap::Args;
 use objnerf::field::holdout::HoldOut;
+use objnerf::fit::FitOptions;
 
 /// `--hold-out RULE` or `--hold-out-every N`: the views left out of training, to score on.
 #[derive(Args, Clone, Copy, Debug, Default)]
@@ -69,6 +70,27 @@ impl TimeBudgetArg {
             Some(Budget::Unlimited) => None,
             Some(Budget::Seconds(s)) => Some(s),
         }
+    }
+}
+
+/// `--appearance-lr`: each training view's colour correction, with one meaning in `train`,
+/// `extract` and `remove`.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct AppearanceArg {
+    /// Learn a colour correction (gain and offset per channel) for each training view at this
+    /// learning rate, for captures whose exposure or white balance drifts between frames
+    /// (phone videos); renders, meshes and scores leave it out (0: off).
+    #[arg(long = "appearance-lr", value_name = "RATE", value_parser = parse_rate,
+          default_value_t = FitOptions::default().appearance_lr)]
+    pub rate: f32,
+}
+
+fn parse_rate(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v >= 0.0 && v.is_finite() => Ok(v),
+        _ => Err(format!(
+            "'{s}' is not a learning rate: give a number of at least 0 (0: off)"
+        )),
     }
 }
 
