@@ -83,7 +83,7 @@ pub struct TrainCmd {
     #[arg(long, default_value_t = FitOptions::default().mask_band)]
     mask_band: u32,
     #[command(flatten)]
-    appearance: AppearanceArg,
+    pub(super) appearance: AppearanceArg,
     /// Continue training this model.
     #[arg(long)]
     resume: Option<PathBuf>,

@@ -135,6 +135,40 @@ mod tests {
         }
     }
 
+    /// The appearance rate each training command resolves from `args`.
+    fn appearance(command: &str, args: &[&str]) -> Result<f32, String> {
+        let mut argv = vec!["objnerf", command];
+        argv.extend(match command {
+            "train" => vec!["scene", "--masks", "alpha", "--out", "m.objf"],
+            "extract" => vec!["scene", "--view", "v.png", "--point", "1,2", "--out", "run"],
+            _ => vec!["scene", "--segment", "seg", "--object", "mug", "--out", "o"],
+        });
+        argv.extend(args);
+        let cli = Cli::try_parse_from(argv).map_err(|e| e.to_string())?;
+        Ok(match cli.command {
+            Command::Train(c) => c.appearance.rate,
+            Command::Extract(c) => c.options().fit.appearance_lr,
+            Command::Remove(c) => c.options().field.fit.appearance_lr,
+            _ => unreachable!("not a command that learns appearance"),
+        })
+    }
+
+    #[test]
+    fn appearance_lr_means_the_same_in_every_command() {
+        for c in ["train", "extract", "remove"] {
+            assert_eq!(appearance(c, &[]), Ok(0.0), "{c}: off by default");
+            assert_eq!(
+                appearance(c, &["--appearance-lr", "0.003"]),
+                Ok(0.003),
+                "{c}"
+            );
+            for bad in ["-1", "inf", "fast"] {
+                let e = appearance(c, &[&format!("--appearance-lr={bad}")]).unwrap_err();
+                assert!(e.contains("not a learning rate"), "{c} {bad}: {e}");
+            }
+        }
+    }
+
     #[test]
     fn each_command_keeps_its_default_budget() {
         let defaults: Vec<Option<f64>> = COMMANDS.iter().map(|c| budget(c, &[]).unwrap()).collect();
