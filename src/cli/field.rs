@@ -1,6 +1,6 @@
 //! `objnerf train`, `objnerf render` and `objnerf eval`: one field at a time.
 
-use super::training::{HoldOutArg, TimeBudgetArg};
+use super::training::{AppearanceArg, HoldOutArg, TimeBudgetArg};
 use crate::cli::progress_bars::Bars;
 use clap::Args;
 use objnerf::field::holdout::{held_out_views, HoldOut};
@@ -82,6 +82,8 @@ pub struct TrainCmd {
     /// e.g. 'truth:OBJECT').
     #[arg(long, default_value_t = FitOptions::default().mask_band)]
     mask_band: u32,
+    #[command(flatten)]
+    pub(super) appearance: AppearanceArg,
     /// Continue training this model.
     #[arg(long)]
     resume: Option<PathBuf>,
@@ -122,6 +124,7 @@ impl TrainCmd {
             },
             exclude_views: held_out_views(scene, self.hold_out.or(HoldOut::None)),
             mask_band: self.mask_band,
+            appearance_lr: self.appearance.rate,
         }
     }
 
@@ -278,14 +281,15 @@ impl EvalCmd {
         )?;
         if self.json {
             let v = serde_json::json!({
-                "psnr": r.psnr, "ssim": r.ssim, "num_views": r.num_views, "views": r.views,
+                "psnr": r.psnr, "ssim": r.ssim, "psnr_colour_fit": r.psnr_colour_fit,
+                "num_views": r.num_views, "views": r.views,
                 "seconds": r.seconds, "pixel_samples": n,
             });
             println!("{v}");
         } else {
             println!(
-                "PSNR {:.2} dB, SSIM {:.4} over {} views",
-                r.psnr, r.ssim, r.num_views
+                "PSNR {:.2} dB, SSIM {:.4} over {} views ({:.2} dB after each view's best affine colour map)",
+                r.psnr, r.ssim, r.num_views, r.psnr_colour_fit
             );
         }
         Ok(())

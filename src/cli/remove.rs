@@ -1,6 +1,6 @@
 //! `objnerf remove`: objects taken out of a scene (a scene field trained with the reverse alpha).
 
-use super::training::{HoldOutArg, TimeBudgetArg};
+use super::training::{AppearanceArg, HoldOutArg, TimeBudgetArg};
 use crate::cli::progress_bars::Bars;
 use clap::Args;
 use objnerf::field::SetupConfig;
@@ -50,6 +50,8 @@ pub struct RemoveCmd {
     fill: HoleFill,
     #[arg(long, default_value_t = FitOptions::default().seed)]
     seed: u64,
+    #[command(flatten)]
+    appearance: AppearanceArg,
     /// Replace the output folder if it exists.
     #[arg(long)]
     overwrite: bool,
@@ -65,6 +67,7 @@ impl RemoveCmd {
         field.fit.time_budget = self.time.or(defaults.field.fit.time_budget);
         field.fit.steps = self.steps;
         field.fit.seed = self.seed;
+        field.fit.appearance_lr = self.appearance.rate;
         field.fit.setup.memory_budget = self.memory_mb << 20;
         RemoveOptions {
             objects: self.objects.clone(),

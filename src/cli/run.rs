@@ -2,7 +2,7 @@
 //! against its truth).
 
 use super::segment::{prompts_in_order, ClickArgs};
-use super::training::{HoldOutArg, TimeBudgetArg};
+use super::training::{AppearanceArg, HoldOutArg, TimeBudgetArg};
 use super::{print_json, print_warnings};
 use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
@@ -43,6 +43,8 @@ pub struct ExtractCmd {
     /// has enough views (0: SH always; see `objnerf train --help`).
     #[arg(long, default_value_t = objnerf::field::SetupConfig::default().net_features)]
     pub colour_net: usize,
+    #[command(flatten)]
+    pub appearance: AppearanceArg,
     /// Marching-cubes samples along the box's longest side (default: the field's grid).
     #[arg(long)]
     pub resolution: Option<usize>,
@@ -77,6 +79,7 @@ impl ExtractCmd {
         o.fit.depth = self.depth;
         o.fit.seed = self.seed;
         o.fit.setup.net_features = self.colour_net;
+        o.fit.appearance_lr = self.appearance.rate;
         o.mesh.resolution = self.resolution;
         o.mesh.iso_alpha = self.iso;
         o.turntable.frames = self.frames.max(1);

@@ -5,6 +5,7 @@
 
 use clap::Args;
 use objnerf::field::holdout::HoldOut;
+use objnerf::fit::FitOptions;
 
 /// `--hold-out RULE` or `--hold-out-every N`: the views left out of training, to score on.
 #[derive(Args, Clone, Copy, Debug, Default)]
@@ -72,6 +73,27 @@ impl TimeBudgetArg {
     }
 }
 
+/// `--appearance-lr`: each training view's colour correction, with one meaning in `train`,
+/// `extract` and `remove`.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct AppearanceArg {
+    /// Learn a colour correction (gain and offset per channel) for each training view at this
+    /// learning rate, for captures whose exposure or white balance drifts between frames
+    /// (phone videos); renders, meshes and scores leave it out (0: off).
+    #[arg(long = "appearance-lr", value_name = "RATE", value_parser = parse_rate,
+          default_value_t = FitOptions::default().appearance_lr)]
+    pub rate: f32,
+}
+
+fn parse_rate(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v >= 0.0 && v.is_finite() => Ok(v),
+        _ => Err(format!(
+            "'{s}' is not a learning rate: give a number of at least 0 (0: off)"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::{Cli, Command};
@@ -109,6 +131,40 @@ mod tests {
             for bad in ["0", "-5", "inf", "soon"] {
                 let e = budget(c, &[&format!("--time-budget={bad}")]).unwrap_err();
                 assert!(e.contains("not a time budget"), "{c} {bad}: {e}");
+            }
+        }
+    }
+
+    /// The appearance rate each training command resolves from `args`.
+    fn appearance(command: &str, args: &[&str]) -> Result<f32, String> {
+        let mut argv = vec!["objnerf", command];
+        argv.extend(match command {
+            "train" => vec!["scene", "--masks", "alpha", "--out", "m.objf"],
+            "extract" => vec!["scene", "--view", "v.png", "--point", "1,2", "--out", "run"],
+            _ => vec!["scene", "--segment", "seg", "--object", "mug", "--out", "o"],
+        });
+        argv.extend(args);
+        let cli = Cli::try_parse_from(argv).map_err(|e| e.to_string())?;
+        Ok(match cli.command {
+            Command::Train(c) => c.appearance.rate,
+            Command::Extract(c) => c.options().fit.appearance_lr,
+            Command::Remove(c) => c.options().field.fit.appearance_lr,
+            _ => unreachable!("not a command that learns appearance"),
+        })
+    }
+
+    #[test]
+    fn appearance_lr_means_the_same_in_every_command() {
+        for c in ["train", "extract", "remove"] {
+            assert_eq!(appearance(c, &[]), Ok(0.0), "{c}: off by default");
+            assert_eq!(
+                appearance(c, &["--appearance-lr", "0.003"]),
+                Ok(0.003),
+                "{c}"
+            );
+            for bad in ["-1", "inf", "fast"] {
+                let e = appearance(c, &[&format!("--appearance-lr={bad}")]).unwrap_err();
+                assert!(e.contains("not a learning rate"), "{c} {bad}: {e}");
             }
         }
     }

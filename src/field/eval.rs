@@ -123,6 +123,69 @@ pub fn psnr(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     -10.0 * mse.max(1e-20).log10()
 }
 
+/// PSNR of `a` against `b` after the affine colour map (3 x 4, least squares over the whole
+/// image) that brings `a` closest to `b`: how methods that learn a per-image appearance
+/// (NeRF-W) are scored on held-out views, whose appearance no training fixed.
+pub fn psnr_colour_fit(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    // Normal equations: (X^T X) M_c = X^T t_c with rows X = [r, g, b, 1].
+    let mut xtx = [[0f64; 4]; 4];
+    let mut xtt = [[0f64; 3]; 4];
+    for (x, t) in a.iter().zip(b) {
+        let row = [x[0] as f64, x[1] as f64, x[2] as f64, 1.0];
+        for i in 0..4 {
+            for j in 0..4 {
+                xtx[i][j] += row[i] * row[j];
+            }
+            for c in 0..3 {
+                xtt[i][c] += row[i] * t[c] as f64;
+            }
+        }
+    }
+    // A little ridge keeps a flat render (one colour) solvable.
+    for (i, r) in xtx.iter_mut().enumerate() {
+        r[i] += 1e-6 * a.len().max(1) as f64;
+    }
+    let Some(m) = solve4(xtx, xtt) else {
+        return psnr(a, b);
+    };
+    let mapped: Vec<[f32; 3]> = a
+        .iter()
+        .map(|x| {
+            let row = [x[0] as f64, x[1] as f64, x[2] as f64, 1.0];
+            [0, 1, 2].map(|c| (0..4).map(|i| row[i] * m[i][c]).sum::<f64>() as f32)
+        })
+        .collect();
+    psnr(&mapped, b)
+}
+
+/// Solve `m x = rhs` (4 x 4, three right-hand sides) by Gaussian elimination with partial
+/// pivoting; None when singular.
+fn solve4(mut m: [[f64; 4]; 4], mut rhs: [[f64; 3]; 4]) -> Option<[[f64; 3]; 4]> {
+    for col in 0..4 {
+        let piv = (col..4).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
+        if m[piv][col].abs() < 1e-12 {
+            return None;
+        }
+        m.swap(col, piv);
+        rhs.swap(col, piv);
+        let (pivot_row, pivot_rhs) = (m[col], rhs[col]);
+        for r in (0..4).filter(|&r| r != col) {
+            let f = m[r][col] / pivot_row[col];
+            m[r].iter_mut()
+                .zip(pivot_row)
+                .for_each(|(v, p)| *v -= f * p);
+            rhs[r]
+                .iter_mut()
+                .zip(pivot_rhs)
+                .for_each(|(v, p)| *v -= f * p);
+        }
+    }
+    for (r, row) in rhs.iter_mut().enumerate() {
+        row.iter_mut().for_each(|v| *v /= m[r][r]);
+    }
+    Some(rhs)
+}
+
 /// SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03, data range 1),
 /// averaged over the valid window positions and the three channels, as the NeRF papers compute it.
 pub fn ssim(a: &[[f32; 3]], b: &[[f32; 3]], w: usize, h: usize) -> f64 {
@@ -184,12 +247,16 @@ pub struct ViewScore {
     pub name: String,
     pub psnr: f64,
     pub ssim: f64,
+    /// PSNR after the render's best affine colour map to the truth ([`psnr_colour_fit`]).
+    pub psnr_colour_fit: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
 pub struct EvalReport {
     pub psnr: f64,
     pub ssim: f64,
+    /// The views' mean [`ViewScore::psnr_colour_fit`].
+    pub psnr_colour_fit: f64,
     pub num_views: usize,
     pub views: Vec<ViewScore>,
     pub seconds: f64,
@@ -208,6 +275,7 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
                 name: v.name.clone(),
                 psnr: psnr(&r.rgb, &t),
                 ssim: ssim(&r.rgb, &t, v.width as usize, v.height as usize),
+                psnr_colour_fit: psnr_colour_fit(&r.rgb, &t),
             }
         })
         .collect();
@@ -215,6 +283,7 @@ pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
     EvalReport {
         psnr: scores.iter().map(|s| s.psnr).sum::<f64>() / n,
         ssim: scores.iter().map(|s| s.ssim).sum::<f64>() / n,
+        psnr_colour_fit: scores.iter().map(|s| s.psnr_colour_fit).sum::<f64>() / n,
         num_views: scores.len(),
         views: scores,
         seconds: start.elapsed().as_secs_f64(),
@@ -258,6 +327,34 @@ mod tests {
             })
             .collect();
         assert!(psnr(&a, &a) > 100.0);
+        // A render that is the truth under a colour map scores as the truth after the fit.
+        let a: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                [
+                    (i * 37 % 101) as f32,
+                    (i * 53 % 97) as f32,
+                    (i * 11 % 89) as f32,
+                ]
+            })
+            .map(|p| [p[0] / 101.0, p[1] / 97.0, p[2] / 89.0])
+            .collect();
+        let mapped: Vec<[f32; 3]> = a
+            .iter()
+            .map(|p| {
+                [
+                    0.8 * p[0] + 0.1,
+                    0.9 * p[1] + 0.05 * p[0],
+                    1.1 * p[2] - 0.02,
+                ]
+            })
+            .collect();
+        assert!(psnr(&mapped, &a) < 30.0);
+        assert!(
+            psnr_colour_fit(&mapped, &a) > 80.0,
+            "{}",
+            psnr_colour_fit(&mapped, &a)
+        );
+        assert!(psnr_colour_fit(&a, &a) > 80.0);
         assert!((ssim(&a, &a, w, h) - 1.0).abs() < 1e-9);
         let b: Vec<[f32; 3]> = a.iter().map(|p| p.map(|v| (v + 0.1).min(1.0))).collect();
         let p = psnr(&a, &b);

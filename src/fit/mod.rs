@@ -12,7 +12,7 @@ use crate::field::rays::RaySet;
 use crate::field::session::{
     prepare, prepare_scene, run, RunSummary, SetupConfig, SetupReport, StopRule,
 };
-use crate::field::train::{StepStats, TrainConfig, Trainer};
+use crate::field::train::{StepStats, TrainConfig, Trainer, ViewAppearance};
 use crate::field::view::{load_views, MaskSource, View};
 use crate::fit::scene_checks::{check_scene_fit, measure_scene_fit, SceneFitCheck};
 use crate::scene::Scene;
@@ -45,6 +45,9 @@ pub struct FitOptions {
     /// background behind the object ([`crate::supervision::edge`]; 0: masks taken as exact). Images' own
     /// alpha is always exact.
     pub mask_band: u32,
+    /// Learning rate of each training view's colour correction (gains and offsets, learnt and
+    /// left out when rendering: [`crate::field::train::Appearance`]; 0: off).
+    pub appearance_lr: f32,
 }
 
 impl Default for FitOptions {
@@ -59,6 +62,7 @@ impl Default for FitOptions {
             setup: SetupConfig::default(),
             exclude_views: vec![],
             mask_band: 2,
+            appearance_lr: TrainConfig::default().appearance_lr,
         }
     }
 }
@@ -113,6 +117,18 @@ pub struct TrainReport {
     /// The scene fit's self-checks that tripped.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<Warning>,
+    /// Each training view's learnt colour correction (empty: none learnt).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub appearance: Vec<ViewAppearance>,
+}
+
+/// The corrections `trainer` learnt for `views` (none: empty).
+fn appearance_report(trainer: &Trainer, views: &[View]) -> Vec<ViewAppearance> {
+    let names: Vec<String> = views.iter().map(|v| v.name.clone()).collect();
+    trainer
+        .appearance
+        .as_ref()
+        .map_or(Vec::new(), |a| a.report(&names))
 }
 
 /// A trained field with its optimiser state, and the report.
@@ -141,6 +157,7 @@ pub fn fit_object(
     let cfg = TrainConfig {
         seed: opts.seed,
         steps: opts.schedule_steps(),
+        appearance_lr: opts.appearance_lr,
         // Measured where the targets are the sparse points alone (examples/results/field.md,
         // "Free space in front of the sparse points"). With the demo's exact dense depth, which
         // places every surface already, it cost the edit test's objects 0.1-0.4 dB inside.
@@ -175,6 +192,7 @@ pub fn fit_object(
         finest: trainer.finest.clone(),
         scene_fit: None,
         warnings: Vec::new(),
+        appearance: appearance_report(&trainer, &views),
     };
     Ok(Fitted { trainer, report })
 }
@@ -362,6 +380,7 @@ impl SceneFit {
         let mut cfg = TrainConfig {
             seed: fit.seed,
             steps: fit.schedule_steps(),
+            appearance_lr: fit.appearance_lr,
             ..opts.train.clone()
         };
         let forward = matches!(space.space, crate::space::Space::Ndc(_));
@@ -440,6 +459,7 @@ impl SceneFit {
             ..last
         };
         let t = self.trainer;
+        let appearance = appearance_report(&t, &self.views);
         let report = TrainReport {
             setup: Some(self.setup),
             run: summary,
@@ -451,6 +471,7 @@ impl SceneFit {
             finest: t.finest.clone(),
             scene_fit: self.fit_check,
             warnings: self.warnings,
+            appearance,
         };
         Fitted { trainer: t, report }
     }
@@ -484,6 +505,7 @@ pub fn model_notes(
         "up_why": up_why,
         "depth": opts.depth,
         "depth_targets": report.depth_targets,
+        "appearance": report.appearance,
     })
 }
 

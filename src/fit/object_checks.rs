@@ -224,6 +224,7 @@ mod tests {
             finest: None,
             scene_fit: None,
             warnings: Vec::new(),
+            appearance: Vec::new(),
         }
     }
 

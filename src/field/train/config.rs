@@ -117,6 +117,12 @@ pub struct TrainConfig {
     /// 20 min at 34.54 dB, within the default's runs (examples/results/field.md, "A second
     /// hidden layer by default; the view direction jittered").
     pub view_jitter: f32,
+    /// Learning rate of the per-view appearance correction ([`super::appearance`]: gains and
+    /// offsets per colour channel, learnt for each training view and left out when rendering;
+    /// 0: off).
+    pub appearance_lr: f32,
+    /// Weight of the pull of each view's correction to the identity (squared, per parameter).
+    pub appearance_pull: f32,
     pub render: RenderOptions,
 }
 
@@ -170,6 +176,8 @@ impl Default for TrainConfig {
             average_from_network: 0.8,
             average_every: 500,
             view_jitter: 0.0,
+            appearance_lr: 0.0,
+            appearance_pull: 1e-4,
             // Training samples every voxel; rendering and evaluation every half voxel. Measured
             // on lego 200^2 in 90 s: step 1.0 with 2048-ray batches gave 31.2 dB against 28.3 dB
             // at step 0.5 (same batch), since each step costs about half as much.

@@ -7,11 +7,13 @@
 //! every slab adds the records that touch it in chunk order. So each voxel's gradient is summed in
 //! the same order whatever the thread count, and two runs with one seed give identical grids.
 
+mod appearance;
 mod average;
 mod config;
 mod optim;
 mod step;
 
+pub use appearance::{Appearance, ViewAppearance};
 pub use config::{StepStats, TrainConfig, AUTO_RAY_RUN};
 
 use super::colour_net::NetAdam;
@@ -73,6 +75,10 @@ pub struct Trainer {
     pub finest: Option<FinestStage>,
     /// The running mean of the parameters, once `cfg.average_from` has passed.
     average: Option<average::ParamAverage>,
+    /// Each training view's learnt colour correction (`cfg.appearance_lr` > 0), and its
+    /// gradient per chunk (summed in chunk order, as the network's).
+    pub appearance: Option<Appearance>,
+    app_grads: Vec<Vec<f32>>,
 }
 
 /// The finest stage's grid: chosen when it starts, from the bricks the occupied cells need.
@@ -139,6 +145,8 @@ impl Trainer {
             budget: None,
             finest: None,
             average: None,
+            appearance: None,
+            app_grads: Vec::new(),
         };
         t.reset_state();
         t
@@ -363,6 +371,11 @@ impl Trainer {
     /// One optimisation step on `batch` rays drawn from `rays`.
     pub fn train_step(&mut self, views: &[View], rays: &RaySet) -> StepStats {
         self.maybe_grow(views, rays);
+        if self.cfg.appearance_lr > 0.0
+            && self.appearance.as_ref().map(Appearance::views) != Some(views.len())
+        {
+            self.appearance = Some(Appearance::identity(views.len()));
+        }
         let cfg = self.cfg.clone();
         let step = self.step;
         let clock = std::time::Instant::now();
@@ -381,19 +394,25 @@ impl Trainer {
             plane: field.grid.dims[0] * field.grid.dims[1],
             nslabs: slabs.count(),
             slab_of_layer: &slabs.slab_of_layer,
+            appearance: self.appearance.as_ref().map(|a| &a.params[..]),
         };
         let net_len = field.net.as_ref().map_or(0, |n| n.weights.len());
+        let app_len = self.appearance.as_ref().map_or(0, |a| a.params.len());
         self.net_grads.resize_with(nchunks, Vec::new);
+        self.app_grads.resize_with(nchunks, Vec::new);
         let stats: Vec<(f64, f64, usize)> = self
             .records
             .par_iter_mut()
             .zip(self.net_grads.par_iter_mut())
+            .zip(self.app_grads.par_iter_mut())
             .zip(picks.par_chunks(CHUNK))
             .enumerate()
-            .map(|(ci, ((rec, net_grad), chunk))| {
+            .map(|(ci, (((rec, net_grad), app_grad), chunk))| {
                 net_grad.clear();
                 net_grad.resize(net_len, 0.0);
-                ctx.chunk_gradients(ci, chunk, rec, net_grad)
+                app_grad.clear();
+                app_grad.resize(app_len, 0.0);
+                ctx.chunk_gradients(ci, chunk, rec, net_grad, app_grad)
             })
             .collect();
         let (loss, mse, nsamp) = stats
@@ -401,6 +420,9 @@ impl Trainer {
             .fold((0.0, 0.0, 0), |a, s| (a.0 + s.0, a.1 + s.1, a.2 + s.2));
         if net_len > 0 {
             self.step_net(nchunks);
+        }
+        if app_len > 0 {
+            self.step_appearance(nchunks);
         }
         self.phase_secs[0] += clock.elapsed().as_secs_f64();
         self.apply_gradients(stride, &slabs);
@@ -574,6 +596,21 @@ impl Trainer {
         if let Some(net) = self.field.net.as_mut() {
             self.net_adam
                 .step(&mut net.weights, first, lr, cfg.beta1, cfg.beta2);
+        }
+    }
+
+    /// Sum the chunks' appearance gradients in chunk order and step the views' corrections.
+    fn step_appearance(&mut self, nchunks: usize) {
+        let cfg = &self.cfg;
+        let lr = cfg.appearance_lr * cfg.lr_final.powf(self.progress());
+        let (first, rest) = self.app_grads[..nchunks]
+            .split_first_mut()
+            .expect("a chunk");
+        for g in rest.iter() {
+            first.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        }
+        if let Some(a) = self.appearance.as_mut() {
+            a.step(first, lr, cfg.appearance_pull, cfg.beta1, cfg.beta2);
         }
     }
 

@@ -4,6 +4,7 @@
 use super::super::grid::BRICK;
 use super::super::model::Field;
 use super::super::view::{EdgePixel, View};
+use super::appearance::{corrected, corrected_grad, PER_VIEW};
 use super::config::TrainConfig;
 use crate::field::march::{
     backward, distortion, forward_seen_from, free_space, RayGrad, RayOut, Sample,
@@ -29,6 +30,8 @@ pub(super) struct StepContext<'a> {
     pub(super) plane: usize,
     pub(super) nslabs: usize,
     pub(super) slab_of_layer: &'a [u32],
+    /// Each training view's colour correction (`PER_VIEW` values a view), when learnt.
+    pub(super) appearance: Option<&'a [f32]>,
 }
 
 /// One ray's loss and the gradients it hands the backward pass.
@@ -43,13 +46,15 @@ struct RayLoss {
 
 impl StepContext<'_> {
     /// Forward and backward for a chunk of rays (`ci`: its index in the batch): gradient
-    /// records into `rec` (one list per z-slab), and (loss, squared error, samples) summed.
+    /// records into `rec` (one list per z-slab), the network's and the views' corrections'
+    /// gradients added to `net_grad` and `app_grad`, and (loss, squared error, samples) summed.
     pub(super) fn chunk_gradients(
         &self,
         ci: usize,
         chunk: &[(u32, u32)],
         rec: &mut Vec<Vec<f32>>,
         net_grad: &mut [f32],
+        app_grad: &mut [f32],
     ) -> (f64, f64, usize) {
         let (cfg, field) = (self.cfg, self.field);
         rec.resize_with(self.nslabs, Vec::new);
@@ -76,7 +81,23 @@ impl StepContext<'_> {
             let view_d = jittered(d, cfg.view_jitter, &mut r);
             let out = forward_seen_from(field, &cfg.render, o, d, view_d, jitter, bg, &mut samples);
             nsamp += samples.len();
-            let l = self.ray_loss(view, px, (o, d), bg, edge, &out);
+            let correction = self
+                .appearance
+                .map(|a| &a[vi as usize * PER_VIEW..(vi as usize + 1) * PER_VIEW]);
+            let mut l = match correction {
+                Some(p) => self.ray_loss(view, px, (o, d), bg, edge, &corrected(&out, bg, p)),
+                None => self.ray_loss(view, px, (o, d), bg, edge, &out),
+            };
+            if let Some(p) = correction {
+                let g = corrected_grad(&out, bg, p, l.g_rgb);
+                l.g_rgb = g.rgb;
+                l.g_alpha += g.alpha;
+                let at = vi as usize * PER_VIEW;
+                app_grad[at..at + PER_VIEW]
+                    .iter_mut()
+                    .zip(g.params)
+                    .for_each(|(a, b)| *a += b);
+            }
             mse += l.sq_err;
             loss += l.loss;
             if samples.is_empty() {
