@@ -194,7 +194,10 @@ impl TrainCmd {
                 c.see_through_view,
                 100.0 * c.see_through
             );
-            super::print_warnings(&r.warnings);
+            // With --json the warnings are in the report, and stdout is the JSON alone.
+            if !self.json {
+                super::print_warnings(&r.warnings);
+            }
         }
         Ok(())
     }
