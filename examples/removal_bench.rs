@@ -22,29 +22,6 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn objnerf() -> PathBuf {
-    let exe = std::env::current_exe().expect("own path");
-    exe.parent()
-        .and_then(|p| p.parent())
-        .expect("target/release")
-        .join("objnerf")
-}
-
-fn run_ok(args: &[String]) -> std::process::Output {
-    let out = Command::new(objnerf())
-        .args(args)
-        .output()
-        .expect("run objnerf");
-    if !out.status.success() {
-        panic!(
-            "objnerf {} failed:\n{}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    out
-}
-
 fn arg(name: &str) -> Option<String> {
     let a: Vec<String> = std::env::args().collect();
     a.iter()
@@ -103,7 +80,7 @@ fn main() {
             ]);
             a.extend(["--fill".into(), fill.into()]);
             let t = std::time::Instant::now();
-            run_ok(&a);
+            bench::run_objnerf(&a);
             let wall = t.elapsed().as_secs_f64();
             let r: Value =
                 serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
@@ -163,7 +140,7 @@ fn unseen_fraction(r: &Value) -> f64 {
 
 fn make_scene_and_segment(tmp: &Path) -> (PathBuf, PathBuf) {
     let scene = tmp.join("demo");
-    run_ok(&[
+    bench::run_objnerf(&[
         "demo-scene".into(),
         "--out".into(),
         scene.display().to_string(),
@@ -178,7 +155,7 @@ fn make_scene_and_segment(tmp: &Path) -> (PathBuf, PathBuf) {
         .find(|o| o["name"] == "mug")
         .unwrap();
     let seg = tmp.join("seg");
-    run_ok(&[
+    bench::run_objnerf(&[
         "segment".into(),
         scene.display().to_string(),
         "--view".into(),

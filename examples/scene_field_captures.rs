@@ -15,10 +15,12 @@
 //! report at; see examples/results/scene_field.md). `--chart-only` redraws the chart from the
 //! JSON.
 
+#[path = "support/bench.rs"]
+mod bench;
+
 use objnerf::util::chart::{palette, svg, ChartResult, Layer, Panel};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// Published held-out PSNR on the LLFF scenes: (scene, NeRF, Plenoxels), from the NeRF paper's
 /// and the Plenoxels paper's per-scene tables (every 8th view held out).
@@ -33,26 +35,8 @@ const PUBLISHED: [(&str, f64, f64); 8] = [
     ("trex", 26.80, 26.48),
 ];
 
-fn objnerf() -> PathBuf {
-    let exe = std::env::current_exe().expect("own path");
-    exe.parent()
-        .and_then(|p| p.parent())
-        .expect("target/release")
-        .join("objnerf")
-}
-
 fn run_json(args: &[String]) -> Value {
-    let out = Command::new(objnerf())
-        .args(args)
-        .output()
-        .expect("run objnerf");
-    if !out.status.success() {
-        panic!(
-            "objnerf {} failed:\n{}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
+    let out = bench::run_objnerf(args);
     serde_json::from_slice(&out.stdout).expect("objnerf --json prints JSON")
 }
 

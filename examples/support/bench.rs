@@ -7,6 +7,31 @@ use objnerf::{Error, Result};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+/// The `objnerf` binary built beside the running example (`target/release/objnerf`).
+pub fn objnerf_exe() -> PathBuf {
+    let exe = std::env::current_exe().expect("own path");
+    exe.parent()
+        .and_then(|p| p.parent())
+        .expect("target/release")
+        .join("objnerf")
+}
+
+/// Run `objnerf args`; panic with its stderr when it fails (a benchmark stops on a failed run).
+pub fn run_objnerf(args: &[String]) -> std::process::Output {
+    let out = Command::new(objnerf_exe())
+        .args(args)
+        .output()
+        .expect("run objnerf");
+    if !out.status.success() {
+        panic!(
+            "objnerf {} failed:\n{}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    out
+}
+
 /// Summary of a list of timings, in seconds.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Stats {
