@@ -43,16 +43,7 @@ fn mm() -> Vec<(String, String)> {
 #[test]
 fn demo_truth_and_nerfstudio_export_say_their_depth_unit() {
     let dir = tempfile::tempdir().unwrap();
-    let demo = dir.path().join("demo");
-    common::objnerf_ok(&[
-        "demo-scene",
-        "--out",
-        demo.to_str().unwrap(),
-        "--views",
-        "6",
-        "--size",
-        "160x120",
-    ]);
+    let demo = demo_scene(dir.path(), "6", "160x120");
     // The demo's truth depth: PNG (mm) and EXR (m), and its transforms.json.
     let png = demo.join("truth/depth/view_000.png");
     let exr = demo.join("truth/depth/view_000.exr");
@@ -110,16 +101,7 @@ fn demo_truth_and_nerfstudio_export_say_their_depth_unit() {
 #[test]
 fn a_transforms_json_in_metres_reads_as_metres() {
     let dir = tempfile::tempdir().unwrap();
-    let demo = dir.path().join("demo");
-    common::objnerf_ok(&[
-        "demo-scene",
-        "--out",
-        demo.to_str().unwrap(),
-        "--views",
-        "4",
-        "--size",
-        "64x48",
-    ]);
+    let demo = demo_scene(dir.path(), "4", "64x48");
     let path = demo.join("transforms.json");
     let mut tf: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     tf["depth_unit_scale_factor"] = serde_json::json!(1.0);
@@ -132,4 +114,19 @@ fn a_transforms_json_in_metres_reads_as_metres() {
         err.contains("transforms.json") && err.contains("depth_unit_scale_factor"),
         "{err}"
     );
+}
+
+/// `objnerf demo-scene` of `views` views at `size` in `dir/demo`.
+fn demo_scene(dir: &std::path::Path, views: &str, size: &str) -> std::path::PathBuf {
+    let demo = dir.join("demo");
+    common::objnerf_ok(&[
+        "demo-scene",
+        "--out",
+        demo.to_str().unwrap(),
+        "--views",
+        views,
+        "--size",
+        size,
+    ]);
+    demo
 }

@@ -277,30 +277,26 @@ fn videos_ffmpeg_cannot_use_are_refused_by_name() {
     }
     // A video stream without a frame.
     let empty = dir.path().join("empty.avi");
-    ffmpeg(&[
-        "-f",
-        "lavfi",
-        "-i",
-        "color=s=64x64:d=0.1",
-        "-frames:v",
-        "0",
-        "-c:v",
-        "mpeg4",
-        empty.to_str().unwrap(),
-    ]);
+    blank_video(&empty, 0);
     refused(&empty, "the video has no frames");
     // One frame.
     let one = dir.path().join("one.avi");
+    blank_video(&one, 1);
+    refused(&one, "one frame");
+}
+
+/// A 64x64 blank MPEG-4 video of `frames` frames at `path`.
+fn blank_video(path: &std::path::Path, frames: usize) {
+    let frames = frames.to_string();
     ffmpeg(&[
         "-f",
         "lavfi",
         "-i",
         "color=s=64x64:d=0.1",
         "-frames:v",
-        "1",
+        &frames,
         "-c:v",
         "mpeg4",
-        one.to_str().unwrap(),
+        path.to_str().unwrap(),
     ]);
-    refused(&one, "one frame");
 }

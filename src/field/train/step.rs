@@ -81,12 +81,20 @@ impl StepContext<'_> {
             let view_d = jittered(d, cfg.view_jitter, &mut r);
             let out = forward_seen_from(field, &cfg.render, o, d, view_d, jitter, bg, &mut samples);
             nsamp += samples.len();
+            // The depth target, and the space length a world length spans there (the depth
+            // and free-space losses both measure in finest voxels at the target).
+            let target = view.depth.as_ref().map_or(0.0, |d| d[px as usize]);
+            let per_world = if target > 0.0 {
+                field.space.space_per_world(o, d, target)
+            } else {
+                0.0
+            };
             let correction = self
                 .appearance
                 .map(|a| &a[vi as usize * PER_VIEW..(vi as usize + 1) * PER_VIEW]);
             let mut l = match correction {
-                Some(p) => self.ray_loss(view, px, (o, d), bg, edge, &corrected(&out, bg, p)),
-                None => self.ray_loss(view, px, (o, d), bg, edge, &out),
+                Some(p) => self.ray_loss(view, px, per_world, bg, edge, &corrected(&out, bg, p)),
+                None => self.ray_loss(view, px, per_world, bg, edge, &out),
             };
             if let Some(p) = correction {
                 let g = corrected_grad(&out, bg, p, l.g_rgb);
@@ -110,11 +118,9 @@ impl StepContext<'_> {
                 let k = cfg.distortion_weight * self.inv_b;
                 g_w.iter_mut().for_each(|g| *g *= k);
             }
-            let target = view.depth.as_ref().map_or(0.0, |d| d[px as usize]);
             if cfg.free_space_weight > 0.0 && target > 0.0 {
                 // The margin in finest voxels, as world length at the target.
-                let per_world = field.space.space_per_world(o, d, target).max(1e-9);
-                let front = target - cfg.free_space_margin * unit / per_world;
+                let front = target - cfg.free_space_margin * unit / per_world.max(1e-9);
                 let k = cfg.free_space_weight * self.inv_b;
                 loss += (free_space(&samples, front, k, &mut g_w) / self.inv_b) as f64;
             }
@@ -160,12 +166,13 @@ impl StepContext<'_> {
     /// background (which also supervises alpha), the squared alpha error, and the depth of the
     /// opaque part against a depth target. A mask-edge pixel (`edge`; `bg` is its backdrop)
     /// has the photo as its colour target: the mask's alpha stays a (weak) prior there, and the
-    /// colour decides.
+    /// colour decides. `per_world`: the space length a world length spans at the depth target
+    /// ([`crate::space::Space::space_per_world`]).
     fn ray_loss(
         &self,
         view: &View,
         px: u32,
-        (o, d): (glam::Vec3, glam::Vec3),
+        per_world: f32,
         bg: [f32; 3],
         edge: Option<&EdgePixel>,
         out: &RayOut,
@@ -198,8 +205,7 @@ impl StepContext<'_> {
                 // The error in finest voxels at the target (world units in a box; NDC and the
                 // contraction shrink distance, and world units there would weigh a far target's
                 // stereo error thousands of times a near one's).
-                let inv_voxel =
-                    self.field.space.space_per_world(o, d, dt) / self.field.config.base_voxel;
+                let inv_voxel = per_world / self.field.config.base_voxel;
                 let dn = out.depth / out.alpha;
                 let ed = (dn - dt) * inv_voxel;
                 let g = 2.0 * cfg.depth_weight * ed * inv_voxel * inv_b;
