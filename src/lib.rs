@@ -9,6 +9,7 @@
 //! The command line (`src/cli/`, part of the `objnerf` binary) is a thin layer over this library:
 //! library code takes typed options, returns values and reports, and never prints.
 
+pub mod batch;
 pub mod bench;
 pub mod demo;
 pub mod edit;

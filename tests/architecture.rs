@@ -36,6 +36,7 @@ const TIERS: &[(&str, u32)] = &[
     ("demo", 7),
     ("pipeline", 8),
     ("bench", 9),
+    ("batch", 9),
     ("cli", 10),
 ];
 
