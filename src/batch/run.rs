@@ -52,6 +52,7 @@ pub fn run_batch(
 
 /// Gather the jobs' records in `out` (a job without one is "not run") into `summary.json`.
 pub fn summarize(manifest: &Manifest, out: &Path) -> Result<BatchSummary> {
+    let out = &std::path::absolute(out).map_err(|e| Error::io(out, e))?;
     let mut jobs = Vec::new();
     for job in &manifest.jobs {
         let p = out.join(record_path(&job.id));
