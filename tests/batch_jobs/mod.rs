@@ -69,7 +69,7 @@ pub fn eight_job_manifest(dir: &Path) -> PathBuf {
     let extract = |seed: u64, objects: Vec<Value>, first: &str| json!({"view": view(seed, first), "objects": objects, "options": extract_options(seed)});
     let mut torus = object(1, "torus");
     torus["box"] = json!(true_box(&dir.join("scenes/s1"), "torus", &view(1, "torus")));
-    let jobs = vec![
+    let jobs = [
         json!({"id": "mug_s1", "scene": "scenes/s1",
                "extract": extract(1, vec![object(1, "mug")], "mug"),
                "remove": {"options": remove_options()},
