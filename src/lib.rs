@@ -3,7 +3,7 @@
 //! (ARCHITECTURE.md; `tests/architecture.rs` checks it):
 //!
 //! ```text
-//! util ← scene ← (sam, models, segment, field) ← (mesh, render, eval, demo) ← pipeline ← bench ← cli
+//! util ← scene ← (sam, models, segment, field) ← (mesh, render, eval, demo) ← pipeline ← (bench, batch) ← cli
 //! ```
 //!
 //! The command line (`src/cli/`, part of the `objnerf` binary) is a thin layer over this library:

@@ -407,3 +407,95 @@ fn flags(stage: &str, options: &Flags, own: &[&str]) -> std::result::Result<Vec<
     }
     Ok(args)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn manifest(dir: &Path, lines: &[&str]) -> Result<Manifest> {
+        std::fs::create_dir_all(dir.join("scene")).unwrap();
+        let path = dir.join("jobs.jsonl");
+        std::fs::write(&path, lines.join("\n")).unwrap();
+        Manifest::read(&path)
+    }
+
+    #[test]
+    fn stages_become_command_lines_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        // One line in the file: the JSON is broken over lines here for reading.
+        let line = r#"{"id": "a", "scene": "scene", "export": {"object": "mug"}, "remove": {"options": {"memory_mb": 512, "keep": false}},
+                    "extract": {"view": "v0", "objects": [{"name": "mug", "points": [[1.5, 2]], "negative": [[3, 4]], "box": [0, 0, 9, 9]},
+                                                          {"name": "cup", "view": "v1", "points": [[5, 6]]}],
+                                "options": {"steps": 200, "time_budget": "none", "frames": [2], "keep-cavities": true}},
+                    "resources": {"cpus": 2}}"#
+            .replace('\n', " ");
+        let m = manifest(dir.path(), &["", &line]).unwrap();
+        let job = &m.jobs[0];
+        assert_eq!((job.id.as_str(), job.line), ("a", 2));
+        assert_eq!(job.resources.cpus, Some(2.0));
+        let scene = dir.path().join("scene").display().to_string();
+        let stages: Vec<String> = job.stages.iter().map(|s| s.args.join(" ")).collect();
+        assert_eq!(
+            stages,
+            [
+                format!("extract {scene} --view v0 --object mug --point 1.5,2 --point 3,4,bg --box 0,0,9,9 --object cup --view v1 --point 5,6 --out extract --frames 2 --keep-cavities --steps 200 --time-budget none"),
+                format!("remove {scene} --segment extract/segment --object mug --object cup --out remove --memory-mb 512"),
+                "export nerfstudio extract --out export --object mug".to_string(),
+            ]
+        );
+    }
+
+    #[test]
+    fn bad_lines_name_the_line_and_the_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let ok = r#"{"id": "a", "scene": "scene", "export": {}}"#;
+        for (bad, want) in [
+            (r#"{"id": "a", "scene": "scene"}"#, "no stage"),
+            (
+                r#"{"id": "../a", "scene": "scene", "export": {}}"#,
+                "job id '../a'",
+            ),
+            (
+                r#"{"id": "logs", "scene": "scene", "export": {}}"#,
+                "batch's own logs",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "export": {}, "sfn": {}}"#,
+                "unknown field `sfn`",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "remove": {"objects": ["mug"]}}"#,
+                "needs a segmentation",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "export": {"background": true}}"#,
+                "need an extract stage",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "export": {"options": {"out": "x"}}}"#,
+                "set by the batch",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "export": {"options": {"downscale": null}}}"#,
+                "not a flag's value",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "export": {}, "resources": {"cpus": 0}}"#,
+                "cpus must be above 0",
+            ),
+            (
+                r#"{"id": "b", "scene": "scene", "extract": {"view": "v", "objects": [{"name": "m", "box": [0, 0, 1, 1]}]}}"#,
+                "has no points",
+            ),
+            (ok, "used twice"),
+        ] {
+            let e = manifest(dir.path(), &[ok, bad]).unwrap_err().to_string();
+            assert!(
+                e.contains("jobs.jsonl:2: ") && e.contains(want),
+                "{want}: {e}"
+            );
+        }
+        let e = manifest(dir.path(), &["", " "]).unwrap_err().to_string();
+        assert!(e.contains("holds no job"), "{e}");
+    }
+}
