@@ -3,12 +3,13 @@
 //! (ARCHITECTURE.md; `tests/architecture.rs` checks it):
 //!
 //! ```text
-//! util ← scene ← (sam, models, segment, field) ← (mesh, render, eval, demo) ← pipeline ← bench ← cli
+//! util ← scene ← (sam, models, segment, field) ← (mesh, render, eval, demo) ← pipeline ← (bench, batch) ← cli
 //! ```
 //!
 //! The command line (`src/cli/`, part of the `objnerf` binary) is a thin layer over this library:
 //! library code takes typed options, returns values and reports, and never prints.
 
+pub mod batch;
 pub mod bench;
 pub mod demo;
 pub mod edit;

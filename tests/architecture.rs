@@ -2,7 +2,7 @@
 //!
 //! 1. Modules import only their own tier or lower:
 //!    `util ← scene ← (sam, models, segment, space) ← field ← supervision ← fit ← removal ←
-//!    (mesh, render, edit, export, demo) ← pipeline ← bench ← cli`.
+//!    (mesh, render, edit, export, demo) ← pipeline ← (bench, batch) ← cli`.
 //! 2. No two modules import each other, at any depth: neither two top-level modules nor two files
 //!    (a cycle through `mod.rs` re-exports counts).
 //! 3. Only the command line prints, draws progress bars or reads argv; `main.rs` stays short.
@@ -36,6 +36,7 @@ const TIERS: &[(&str, u32)] = &[
     ("demo", 7),
     ("pipeline", 8),
     ("bench", 9),
+    ("batch", 9),
     ("cli", 10),
 ];
 

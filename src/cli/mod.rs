@@ -2,6 +2,7 @@
 //! command parses its arguments into the library's typed options, calls the library, and prints
 //! what it returns. Defaults live in the library's `Default` impls; the arguments read them.
 
+mod batch;
 mod bench;
 mod camera_path;
 mod edit;
@@ -73,6 +74,10 @@ enum Command {
     RenderEdit(edit::RenderEditCmd),
     /// Write an edit file for an extract run: every object in place over a background.
     EditTemplate(edit::EditTemplateCmd),
+    /// Run every job of a manifest (JSON Lines: a scene and its stages, sfm, extract, remove,
+    /// export, one job a line), each into OUT/<id>/; complete jobs are skipped, so a rerun
+    /// resumes; summary.json and a table at the end (docs/batch.md).
+    Batch(batch::BatchCmd),
     /// Benchmark suites scored against truth (`bench stability`).
     Bench {
         #[command(subcommand)]
@@ -133,6 +138,7 @@ fn run(command: Command, sub: Option<&clap::ArgMatches>) -> Result<()> {
         Command::RenderEdit(cmd) => cmd.run(),
         Command::EditTemplate(cmd) => cmd.run(),
         Command::Export { to } => to.run(),
+        Command::Batch(cmd) => cmd.run(),
         Command::Bench { suite } => suite.run(),
         Command::CameraPath(cmd) => cmd.run(),
     }

@@ -4,7 +4,7 @@ use super::{print_json, print_warnings};
 use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
 use objnerf::models::ModelsDir;
-use objnerf::sam::prompt::parse_point;
+use objnerf::sam::prompt::{parse_box, parse_point};
 use objnerf::segment::PropagationOptions;
 use objnerf::segment::{check_request, segment_scene, ObjectPrompt, PointPrompt};
 use objnerf::{Error, Result, Scene};
@@ -25,6 +25,10 @@ pub struct ClickArgs {
     /// A click x,y[,fg|bg] in pixels (corner origin) on the current object.
     #[arg(long, allow_hyphen_values = true)]
     pub point: Vec<String>,
+    /// A box X0,Y0,X1,Y1 around the current object in its view, with its clicks (SAM's box
+    /// prompt for the first mask).
+    #[arg(long = "box", value_name = "X0,Y0,X1,Y1")]
+    pub bbox: Vec<String>,
 }
 
 /// Which of the click options a value came from.
@@ -33,6 +37,7 @@ enum Click {
     View,
     Object,
     Point,
+    Box,
 }
 
 /// Group `--view/--object/--point` by their order on the command line (clap's value indices):
@@ -44,6 +49,7 @@ pub fn prompts_in_order(m: &ArgMatches, scene: &Scene) -> Result<Vec<ObjectPromp
         ("view", Click::View),
         ("object", Click::Object),
         ("point", Click::Point),
+        ("bbox", Click::Box),
     ] {
         if let (Some(idx), Some(vals)) = (m.indices_of(id), m.get_many::<String>(id)) {
             clicks.extend(idx.zip(vals).map(|(i, v)| (i, kind, v.as_str())));
@@ -74,6 +80,20 @@ pub fn prompts_in_order(m: &ArgMatches, scene: &Scene) -> Result<Vec<ObjectPromp
                     xy: [p.x as f64, p.y as f64],
                     positive: p.positive,
                 });
+            }
+            Click::Box => {
+                let b = parse_box(value)?;
+                if objects.is_empty() {
+                    objects.push(new_object("object", view));
+                }
+                let o = objects.last_mut().expect("an object was just made");
+                if o.bbox.is_some() {
+                    return Err(Error::invalid(format!(
+                        "object '{}' has two --box options: give one",
+                        o.name
+                    )));
+                }
+                o.bbox = Some(b.map(f64::from));
             }
         }
     }
