@@ -8,8 +8,9 @@
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
 use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
-use super::frame::GltfFrame;
+use super::frame::{GltfFrame, Placement};
 use super::io::MeshFormat;
+use super::textured::{export_mesh, ExportOptions, ExportReport};
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::colour_net::MAX_ACTIVATIONS;
@@ -34,6 +35,10 @@ pub struct FieldMeshOptions {
     pub fill_cavities: bool,
     /// Recolour the vertex colours as `render-edit` recolours the field's radiance.
     pub recolour: Option<crate::edit::Recolour>,
+    /// Decimation, texture and material of the mesh written ([`export_mesh`]).
+    pub export: ExportOptions,
+    /// Origin and scale in the glTF (.glb, .obj).
+    pub placement: Placement,
 }
 
 impl Default for FieldMeshOptions {
@@ -44,6 +49,11 @@ impl Default for FieldMeshOptions {
             min_component: 0.05,
             fill_cavities: true,
             recolour: None,
+            export: ExportOptions::default(),
+            placement: Placement {
+                origin: super::frame::Origin::Base,
+                ..Default::default()
+            },
         }
     }
 }
@@ -117,10 +127,11 @@ fn vertex_basis(field: &Field, n: Vec3) -> [f32; SH_TERMS] {
     basis
 }
 
-/// Colour at a surface vertex: the DC colour composited along the inward normal over two voxels,
+/// Colour at a surface point: the DC colour composited along the inward normal over two voxels,
 /// as a camera looking straight at the surface would see it (the iso-surface itself sits where
-/// the field is only half opaque, and colour there is poorly constrained).
-fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
+/// the field is only half opaque, and colour there is poorly constrained). `slack` (world units)
+/// widens the march both ways for a point off the iso-surface (a decimated mesh's).
+pub(crate) fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32) -> [f32; 3] {
     let step = 0.25 * field.voxel;
     let delta = step / field.config.base_voxel;
     let shift = field.shift();
@@ -128,7 +139,8 @@ fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
     let mut trans = 1.0f32;
     let mut acc = [0.0f32; 3];
     let mut wsum = 0.0f32;
-    for i in -2..8 {
+    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
+    for i in -2 - extra..8 + extra {
         let q = p - n * (i as f32 * step);
         let raw = raw_at(field, q);
         if raw <= EMPTY {
@@ -235,7 +247,7 @@ pub fn mesh_field(
         .par_iter()
         .zip(&mesh.normals)
         .map(|(p, n)| {
-            let c = vertex_color(field, Vec3::from_array(*p), Vec3::from_array(*n));
+            let c = surface_colour(field, Vec3::from_array(*p), Vec3::from_array(*n), 0.0);
             recolour.map_or(c, |r| r.apply(c))
         })
         .collect();
@@ -256,15 +268,22 @@ pub fn mesh_field(
 #[derive(Clone, Debug, Serialize)]
 pub struct MeshOutput {
     pub path: PathBuf,
+    /// The full marching-cubes mesh.
     pub mesh: FieldMeshReport,
-    /// The capture-to-glTF frame (None: a .ply of a model that records no up direction).
+    /// From the full mesh to the one written: decimation, atlas, bake, material.
+    pub export: ExportReport,
+    /// The capture-to-glTF frame with origin and scale (None: a .ply of a model that records
+    /// no up direction).
     pub frame: Option<GltfFrame>,
     /// Bounds in the capture's world units (before the glTF frame change).
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
+    pub seconds: f64,
+    pub peak_rss_mib: u64,
 }
 
-/// Load a model, mesh it and write the mesh.
+/// Load a model, mesh it and write the mesh (textured for .glb unless told otherwise; PLY and
+/// OBJ carry vertex colours).
 pub fn mesh_model(
     model_path: &Path,
     out: &Path,
@@ -272,16 +291,23 @@ pub fn mesh_model(
     opts: &FieldMeshOptions,
     up: Option<DVec3>,
 ) -> Result<(Mesh, MeshOutput)> {
+    let t = std::time::Instant::now();
     let format = MeshFormat::of(out)?;
     let model = crate::field::io::load_field(model_path)?;
     // The fill uses up where it is known; a model with nothing to mesh says so before a missing
     // up does. PLY keeps the capture's frame: no up direction needed.
     let frame = GltfFrame::for_model(&model, up);
     let up = frame.as_ref().ok().map(|f| DVec3::from_array(f.up));
-    let (mesh, report) = mesh_field(&model.field, name, opts, up)
+    let (full, report) = mesh_field(&model.field, name, opts, up)
+        .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
+    let mut export = opts.export.clone();
+    if format != MeshFormat::Glb {
+        export.texture_size = None;
+    }
+    let (mesh, export) = export_mesh(&model.field, &full, &export, opts.recolour)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
     let frame = match format.needs_frame() {
-        true => Some(frame?),
+        true => Some(opts.placement.frame(&frame?, &mesh.positions)?),
         false => frame.ok(),
     };
     super::io::write_mesh(&mesh, frame.as_ref(), out)?;
@@ -291,9 +317,12 @@ pub fn mesh_model(
         MeshOutput {
             path: out.to_path_buf(),
             mesh: report,
+            export,
             frame,
             bounds_min: lo,
             bounds_max: hi,
+            seconds: t.elapsed().as_secs_f64(),
+            peak_rss_mib: crate::util::mem::peak_rss_mib(),
         },
     ))
 }
