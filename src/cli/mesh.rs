@@ -146,6 +146,7 @@ impl MeshCmd {
                 .map(|r| Recolour::from_spec(r, self.recolour_strength))
                 .transpose()
                 .map_err(|e| Error::invalid(format!("--recolour: {e}")))?,
+            seen_from: Vec::new(),
             export: self.export.export()?,
             placement: self.export.placement(Origin::parse(&self.origin)?),
         };

@@ -1,17 +1,15 @@
 //! The base-colour texture of an unwrapped mesh, baked from its field.
 //!
 //! Every texel whose centre lies in a triangle of the atlas is the field's colour at that point
-//! of the surface, read as the vertex colours are ([`surface_colour`]): composited along the
-//! inward normal, so it is what a camera looking straight at the surface sees. View dependence is
-//! resolved by taking the view-independent part: an SH field's DC term, which is the mean of its
-//! colour over all directions (and so over the training views that saw the point); a colour
-//! network is asked for the view along the normal. Texels outside every chart are then dilated
+//! of the surface, read as the vertex colours are ([`surface_colour`]: composited along the
+//! inward normal, the mean over the training cameras that face the point; the module
+//! [`super::colour`] says how view dependence is resolved). Texels outside every chart are then dilated
 //! from the charts' edges across the gutters, so bilinear filtering and mipmaps at a chart's
 //! seam read the chart's own colour, and what is still empty takes the mean colour.
 
-use super::from_field::surface_colour;
+use super::colour::surface_colour;
+use super::from_field::FieldMeshOptions;
 use super::Mesh;
-use crate::edit::Recolour;
 use crate::error::{Error, Result};
 use crate::field::model::Field;
 use glam::Vec3;
@@ -31,20 +29,21 @@ pub struct BakeReport {
 const DILATE_RINGS: usize = 16;
 
 /// Bake the base colour of `mesh` (with `uvs`, in the field's world frame) into a `size` x
-/// `size` sRGB image. `slack`: how far (world units) the mesh may lie off the field's surface.
+/// `size` sRGB image. `slack`: how far (world units) the mesh may lie off the field's surface;
+/// `opts.seen_from` and `opts.recolour`: as for vertex colours.
 pub fn bake_base_colour(
     field: &Field,
     mesh: &Mesh,
     size: u32,
     slack: f32,
-    recolour: Option<Recolour>,
+    opts: &FieldMeshOptions,
 ) -> Result<(image::RgbImage, BakeReport)> {
     let uvs = mesh
         .uvs
         .as_ref()
         .ok_or_else(|| Error::invalid(format!("'{}' has no UVs to bake into", mesh.name)))?;
     let s = size as usize;
-    let recolour = recolour.map(|r| r.prepare());
+    let recolour = opts.recolour.map(|r| r.prepare());
     // Each triangle's texels (atlas charts do not overlap, so each texel comes once).
     let texels: Vec<(usize, [f32; 3])> = mesh
         .triangles
@@ -57,7 +56,7 @@ pub fn bake_base_colour(
             for_texels_in(uv, s, |idx, w| {
                 let q = p[0] * w[0] + p[1] * w[1] + p[2] * w[2];
                 let nq = (n[0] * w[0] + n[1] * w[1] + n[2] * w[2]).normalize_or(n[0]);
-                let c = surface_colour(field, q, nq, slack);
+                let c = surface_colour(field, q, nq, slack, &opts.seen_from);
                 out.push((idx, recolour.map_or(c, |r| r.apply(c))));
             });
             out.into_iter()

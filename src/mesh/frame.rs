@@ -74,6 +74,11 @@ impl Placement {
                 ))
             }
             (Some(s), None) => s,
+            (None, Some(h)) if !(h > 0.0 && h.is_finite()) => {
+                return Err(Error::invalid(format!(
+                    "the object's height must be a positive length in metres, not {h}"
+                )))
+            }
             (None, Some(h)) => {
                 let turn = base.matrix();
                 let ys = positions.iter().map(|p| {

@@ -7,15 +7,14 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
+use super::colour::{surface_colour, view_centres};
 use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
 use super::frame::{GltfFrame, Placement};
 use super::io::MeshFormat;
 use super::textured::{export_mesh, ExportOptions, ExportReport};
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
-use crate::field::colour_net::MAX_ACTIVATIONS;
-use crate::field::model::{Field, MAX_CHANNELS};
-use crate::field::sh::{sh_basis, SH_TERMS};
+use crate::field::model::Field;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -35,6 +34,10 @@ pub struct FieldMeshOptions {
     pub fill_cavities: bool,
     /// Recolour the vertex colours as `render-edit` recolours the field's radiance.
     pub recolour: Option<crate::edit::Recolour>,
+    /// The training cameras' centres (world): a surface point's colour is the mean of the
+    /// field's towards those on its outer side (empty: the view-independent colour; see
+    /// [`super::colour`]). [`mesh_model`] reads them from the model's notes.
+    pub seen_from: Vec<Vec3>,
     /// Decimation, texture and material of the mesh written ([`export_mesh`]).
     pub export: ExportOptions,
     /// Origin and scale in the glTF (.glb, .obj).
@@ -49,6 +52,7 @@ impl Default for FieldMeshOptions {
             min_component: 0.05,
             fill_cavities: true,
             recolour: None,
+            seen_from: Vec::new(),
             export: ExportOptions::default(),
             placement: Placement {
                 origin: super::frame::Origin::Base,
@@ -82,7 +86,7 @@ pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
 }
 
 /// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
-fn raw_at(field: &Field, p: Vec3) -> f32 {
+pub(crate) fn raw_at(field: &Field, p: Vec3) -> f32 {
     let g = field.to_grid(p);
     let dims = field.grid.dims;
     let inside = (0..3).all(|a| g[a] >= 0.0 && g[a] <= (dims[a] - 1) as f32);
@@ -95,75 +99,6 @@ fn raw_at(field: &Field, p: Vec3) -> f32 {
     }
     let k = field.grid.corners_of(b, fr);
     field.grid.interp_density(&k)
-}
-
-/// Colour at a world point seen along `dir` whose SH basis is `basis`, linear 0..1.
-fn color_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
-    let g = field.to_grid(p);
-    let dims = field.grid.dims;
-    let g = Vec3::new(
-        g.x.clamp(0.0, (dims[0] - 1) as f32),
-        g.y.clamp(0.0, (dims[1] - 1) as f32),
-        g.z.clamp(0.0, (dims[2] - 1) as f32),
-    );
-    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
-    let k = field.grid.corners_of(b, fr);
-    let mut feat = [0f32; MAX_CHANNELS];
-    let ch = field.grid.channels;
-    field.grid.interp_colour(&k, &mut feat[..ch - 1]);
-    let mut h = [0f32; MAX_ACTIVATIONS];
-    let refl = field.reflection_basis(&k, fr, dir);
-    field.shade(&feat, &refl, &field.shading(*basis), &mut h)
-}
-
-/// The basis a vertex's colour is read with: SH colour keeps its view-independent (DC) term
-/// only; a colour network is asked for the view straight at the surface (along `-n`).
-fn vertex_basis(field: &Field, n: Vec3) -> [f32; SH_TERMS] {
-    let mut basis = [0f32; SH_TERMS];
-    match field.net {
-        Some(_) => sh_basis(field.config.sh_degree, -n, &mut basis),
-        None => basis[0] = 0.282_094_8,
-    }
-    basis
-}
-
-/// Colour at a surface point: the DC colour composited along the inward normal over two voxels,
-/// as a camera looking straight at the surface would see it (the iso-surface itself sits where
-/// the field is only half opaque, and colour there is poorly constrained). `slack` (world units)
-/// widens the march both ways for a point off the iso-surface (a decimated mesh's).
-pub(crate) fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32) -> [f32; 3] {
-    let step = 0.25 * field.voxel;
-    let delta = step / field.config.base_voxel;
-    let shift = field.shift();
-    let basis = vertex_basis(field, n);
-    let mut trans = 1.0f32;
-    let mut acc = [0.0f32; 3];
-    let mut wsum = 0.0f32;
-    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
-    for i in -2 - extra..8 + extra {
-        let q = p - n * (i as f32 * step);
-        let raw = raw_at(field, q);
-        if raw <= EMPTY {
-            continue;
-        }
-        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
-        let w = trans * alpha;
-        if w > 0.0 {
-            let c = color_at(field, q, -n, &basis);
-            for k in 0..3 {
-                acc[k] += w * c[k];
-            }
-            wsum += w;
-        }
-        trans *= 1.0 - alpha;
-        if trans < 1e-3 {
-            break;
-        }
-    }
-    if wsum <= 1e-6 {
-        return color_at(field, p, -n, &basis);
-    }
-    acc.map(|a| (a / wsum).clamp(0.0, 1.0))
 }
 
 /// Cut `field` at `opts.iso_alpha` into a mesh in the field's world units, with normals and
@@ -247,7 +182,8 @@ pub fn mesh_field(
         .par_iter()
         .zip(&mesh.normals)
         .map(|(p, n)| {
-            let c = surface_colour(field, Vec3::from_array(*p), Vec3::from_array(*n), 0.0);
+            let (p, n) = (Vec3::from_array(*p), Vec3::from_array(*n));
+            let c = surface_colour(field, p, n, 0.0, &opts.seen_from);
             recolour.map_or(c, |r| r.apply(c))
         })
         .collect();
@@ -298,13 +234,16 @@ pub fn mesh_model(
     // up does. PLY keeps the capture's frame: no up direction needed.
     let frame = GltfFrame::for_model(&model, up);
     let up = frame.as_ref().ok().map(|f| DVec3::from_array(f.up));
-    let (full, report) = mesh_field(&model.field, name, opts, up)
-        .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
-    let mut export = opts.export.clone();
-    if format != MeshFormat::Glb {
-        export.texture_size = None;
+    let mut opts = opts.clone();
+    if opts.seen_from.is_empty() {
+        opts.seen_from = view_centres(&model.notes);
     }
-    let (mesh, export) = export_mesh(&model.field, &full, &export, opts.recolour)
+    if format != MeshFormat::Glb {
+        opts.export.texture_size = None;
+    }
+    let (full, report) = mesh_field(&model.field, name, &opts, up)
+        .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
+    let (mesh, export) = export_mesh(&model.field, &full, &opts)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
     let frame = match format.needs_frame() {
         true => Some(opts.placement.frame(&frame?, &mesh.positions)?),

@@ -4,6 +4,7 @@
 pub mod atlas;
 pub mod bake;
 pub mod chamfer;
+pub mod colour;
 pub mod decimate;
 pub mod fill;
 pub mod frame;

@@ -5,8 +5,8 @@
 use super::atlas::{unwrap, AtlasReport};
 use super::bake::{bake_base_colour, BakeReport};
 use super::decimate::{decimate, DecimateReport, DEFAULT_MAX_TRIANGLES, DEFAULT_TOLERANCE_VOXELS};
+use super::from_field::FieldMeshOptions;
 use super::{Mesh, Shading};
-use crate::edit::Recolour;
 use crate::error::Result;
 use crate::field::model::Field;
 use serde::Serialize;
@@ -54,13 +54,14 @@ pub struct ExportReport {
 }
 
 /// The mesh to write, from `full` (the field's marching-cubes mesh with vertex colours, in the
-/// field's world frame).
+/// field's world frame), as `mesh_opts.export` says (its colours read as the vertex colours
+/// were: `seen_from`, `recolour`).
 pub fn export_mesh(
     field: &Field,
     full: &Mesh,
-    opts: &ExportOptions,
-    recolour: Option<Recolour>,
+    mesh_opts: &FieldMeshOptions,
 ) -> Result<(Mesh, ExportReport)> {
+    let opts = &mesh_opts.export;
     let mut report = ExportReport {
         shading: opts.shading,
         ..Default::default()
@@ -84,7 +85,7 @@ pub fn export_mesh(
         let t = Instant::now();
         // The bake reads the field around each texel out to the decimation's own error.
         let slack = report.decimate.as_ref().map_or(0.0, |d| d.error);
-        let (img, bake) = bake_base_colour(field, &m, size, slack, recolour)?;
+        let (img, bake) = bake_base_colour(field, &m, size, slack, mesh_opts)?;
         report.bake_seconds = t.elapsed().as_secs_f64();
         m.colors = None;
         m.texture = Some(std::sync::Arc::new(img));

@@ -21,6 +21,7 @@ use crate::field::holdout::HoldOut;
 use crate::field::MaskSource;
 use crate::fit::object_checks::HeldOutCheck;
 use crate::fit::{fit_object, model_notes, FieldKind, FitOptions, TrainReport};
+use crate::mesh::colour::view_centres;
 use crate::mesh::frame::{GltfFrame, Origin, Placement};
 use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
 use crate::mesh::textured::{export_mesh, ExportReport};
@@ -267,6 +268,10 @@ fn extract_object(
     progress.end();
     let model = dir.join("model.objf");
     let notes = model_notes(FieldKind::Object, scene, &fit, &fitted.report);
+    let mesh_opts = FieldMeshOptions {
+        seen_from: view_centres(&notes),
+        ..opts.mesh.clone()
+    };
     crate::field::io::save(
         &model,
         &fitted.trainer.parts(crate::field::io::IDENTITY, notes),
@@ -285,9 +290,9 @@ fn extract_object(
 
     let t = Instant::now();
     let up = DVec3::from_array(frame.up);
-    let (full, mesh_report) = mesh_field(field, &obj.name, &opts.mesh, Some(up))
+    let (full, mesh_report) = mesh_field(field, &obj.name, &mesh_opts, Some(up))
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
-    let (mesh, export) = export_mesh(field, &full, &opts.mesh.export, opts.mesh.recolour)
+    let (mesh, export) = export_mesh(field, &full, &mesh_opts)
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
     let object_frame = opts.mesh.placement.frame(frame, &mesh.positions)?;
     write_mesh(&mesh, Some(&object_frame), &dir.join("mesh.glb"))?;
