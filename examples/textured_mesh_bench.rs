@@ -22,7 +22,7 @@ use objnerf::mesh::decimate::DEFAULT_TOLERANCE_VOXELS;
 use objnerf::mesh::frame::GltfFrame;
 use objnerf::mesh::from_field::{mesh_field, FieldMeshOptions};
 use objnerf::mesh::raster::masked_psnr;
-use objnerf::mesh::textured::{export_mesh, ExportOptions, DEFAULT_TEXTURE_SIZE};
+use objnerf::mesh::textured::{export_mesh, ExportOptions, TextureSize};
 use objnerf::mesh::{io::write_mesh, Mesh};
 use objnerf::util::chart::{palette, svg, Layer, Panel};
 use objnerf::Scene;
@@ -71,14 +71,14 @@ fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
     let cd = chamfer_distance(&mesh, &s.full, 50_000, 7);
     let v = Variant {
         budget: opts.max_triangles,
-        texture: opts.texture_size,
+        texture: report.atlas.as_ref().map(|a| a.size),
         triangles: mesh.triangles.len(),
         psnr_in_mask: masked_psnr(&mesh, &s.views),
         glb_bytes: std::fs::metadata(&glb).map(|m| m.len()).unwrap_or(0),
         chamfer_to_full: cd,
         chamfer_to_full_fraction_of_diagonal: cd / s.diag,
         export_seconds,
-        atlas_utilization: report.atlas.map(|a| a.utilization),
+        atlas_utilization: report.atlas.as_ref().map(|a| a.utilization),
     };
     eprintln!(
         "budget {:?} texture {:?}: {} triangles, {:.2} dB, {} kB, Chamfer {:.3}% diag, {:.1} s",
@@ -161,12 +161,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &s,
         &ExportOptions {
             max_triangles: None,
-            texture_size: None,
+            texture: None,
             ..Default::default()
         },
         dir.path(),
     );
     let default = measure(&s, &ExportOptions::default(), dir.path());
+    let default_side = default.texture;
     let mut by_budget = Vec::new();
     let mut by_budget_vc = Vec::new();
     for &b in &budgets {
@@ -177,10 +178,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         by_budget.push(measure(&s, &o, dir.path()));
         by_budget_vc.push(measure(
             &s,
-            &ExportOptions {
-                texture_size: None,
-                ..o
-            },
+            &ExportOptions { texture: None, ..o },
             dir.path(),
         ));
     }
@@ -188,7 +186,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|&t| {
             let o = ExportOptions {
-                texture_size: Some(t),
+                texture: Some(TextureSize::Side(t)),
                 ..Default::default()
             };
             measure(&s, &o, dir.path())
@@ -216,7 +214,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "full_mesh": { "triangles": s.full.triangles.len(), "psnr_in_mask": full_psnr, "marching_cubes_seconds": full_seconds, "box_diagonal": diag },
         "full_vertex_coloured": full_vc,
         "default": default,
-        "default_texture_size": DEFAULT_TEXTURE_SIZE,
+        "default_texture_size": default_side,
         "by_budget_textured": by_budget,
         "by_budget_vertex_coloured": by_budget_vc,
         "by_texture_size": by_texture,
@@ -248,7 +246,7 @@ fn points(v: &serde_json::Value, x: &str, y: &str, x_scale: f64) -> Vec<(f64, f6
 fn write_chart(path: &Path, r: &serde_json::Value) -> Result<(), Box<dyn std::error::Error>> {
     let full = r["full_mesh"]["psnr_in_mask"].as_f64().unwrap_or(0.0);
     let full_tris = r["full_mesh"]["triangles"].as_f64().unwrap_or(0.0) / 1000.0;
-    let tex = format!("textured, {} px", r["default_texture_size"]);
+    let tex = format!("textured, auto ({} px)", r["default_texture_size"]);
     let budget_psnr = vec![
         Layer::new(
             tex.clone(),

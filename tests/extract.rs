@@ -255,6 +255,7 @@ fn mesh_command_errors_are_clear() {
         ("--material", "shiny", "expected unlit or pbr"),
         ("--origin", "top", "expected base, centre or capture"),
         ("--texture", "8", "16 to 16384"),
+        ("--texture", "big", "expected auto or a size"),
         ("--triangles", "0", "budget of 0"),
         ("--scale", "-1", "positive"),
         ("--height", "0", "positive"),

@@ -12,7 +12,7 @@ use objnerf::field::{Field, FieldConfig, RayCamera, RenderOptions, View};
 use objnerf::mesh::colour::view_centres;
 use objnerf::mesh::from_field::{mesh_field, FieldMeshOptions};
 use objnerf::mesh::raster::masked_psnr;
-use objnerf::mesh::textured::{export_mesh, ExportOptions};
+use objnerf::mesh::textured::{export_mesh, ExportOptions, TextureSize};
 use objnerf::scene::{Camera, Pose};
 use std::path::Path;
 use std::process::Command;
@@ -251,7 +251,7 @@ fn the_textured_mesh_draws_like_the_field() {
     let textured_opts = FieldMeshOptions {
         export: ExportOptions {
             max_triangles: Some(full.triangles.len() / 5),
-            texture_size: Some(512),
+            texture: Some(TextureSize::Side(512)),
             ..Default::default()
         },
         ..opts

@@ -6,7 +6,7 @@ use objnerf::edit::Recolour;
 use objnerf::mesh::decimate::DEFAULT_MAX_TRIANGLES;
 use objnerf::mesh::frame::{Origin, Placement};
 use objnerf::mesh::from_field::{mesh_model, FieldMeshOptions};
-use objnerf::mesh::textured::{ExportOptions, DEFAULT_TEXTURE_SIZE};
+use objnerf::mesh::textured::{ExportOptions, TextureSize};
 use objnerf::mesh::Shading;
 use objnerf::{Error, Result};
 use std::path::PathBuf;
@@ -20,9 +20,10 @@ pub struct MeshExportArgs {
     /// Keep the full marching-cubes mesh (no decimation).
     #[arg(long)]
     pub full: bool,
-    /// Side of the baked base-colour texture in pixels (.glb).
-    #[arg(long, default_value_t = DEFAULT_TEXTURE_SIZE)]
-    pub texture: u32,
+    /// Side of the baked base-colour texture in pixels (.glb), or auto: texels of half the
+    /// field's finest voxel, a power of two from 512 to 4096.
+    #[arg(long, default_value = "auto")]
+    pub texture: String,
     /// Vertex colours instead of a UV atlas and baked texture.
     #[arg(long)]
     pub vertex_colours: bool,
@@ -51,7 +52,10 @@ impl MeshExportArgs {
         };
         Ok(ExportOptions {
             max_triangles: (!self.full).then_some(self.triangles),
-            texture_size: (!self.vertex_colours).then_some(self.texture),
+            texture: match self.vertex_colours {
+                true => None,
+                false => Some(TextureSize::parse(&self.texture)?),
+            },
             shading,
             ..Default::default()
         })

@@ -1,16 +1,17 @@
 //! The colour of a surface point of a field, for vertex colours and baked textures.
 //!
-//! The point's colour is composited along the inward normal over two voxels, as a camera looking
-//! straight at the surface would see it (the iso-surface itself sits where the field is only
-//! half opaque, and colour there is poorly constrained). A radiance field's colour depends on
-//! the direction it is seen from; a mesh has one colour per point. That one colour is the mean
-//! of the field's colours towards the training cameras on the point's outer side (weighted by
-//! the cosine of their angle to the normal: a head-on view sees the point sharpest). Occlusion
-//! is not tested: for a direction no camera saw, the field's low-order SH extrapolates smoothly.
-//! Without the training cameras (models written before they were recorded) an SH field gives its
-//! DC term (the mean over all directions), and a colour network is asked for the view along the
-//! normal, as for a field with a colour network always (its per-ray network is too costly for
-//! every camera at every texel).
+//! A radiance field's colour depends on the direction it is seen from; a mesh has one colour per
+//! point. That one colour is the mean, over the (at most eight) training cameras most head-on to
+//! the point on its outer side, of what each camera's ray through the point shows: the field's
+//! colour in that direction composited along that ray from just before the point to two voxels
+//! past it, so a point of a decimated mesh a little off the field's surface still shows what the
+//! cameras saw there. The mean is weighted by the cosine of each camera's angle to the normal (a
+//! head-on view sees the point sharpest). Occlusion is not tested: for a direction no camera
+//! saw, the field's low-order SH extrapolates smoothly. Without the training cameras (models
+//! written before they were recorded), or where no camera's ray meets the surface, an SH field
+//! gives its DC term (the mean over all directions) composited along the inward normal; a field
+//! with a colour network is always asked for the view along the normal (its per-ray network is
+//! too costly for every camera at every texel).
 
 use super::fill::EMPTY;
 use super::from_field::raw_at;
@@ -19,6 +20,9 @@ use crate::field::colour_net::MAX_ACTIVATIONS;
 use crate::field::model::{Field, MAX_CHANNELS};
 use crate::field::sh::{sh_basis, SH_TERMS};
 use glam::Vec3;
+
+/// Cameras a surface point's colour is averaged over, the most head-on first.
+const MAX_CAMERAS: usize = 8;
 
 /// The training cameras' centres in a model's notes (`view_centres`; empty when absent).
 pub fn view_centres(notes: &serde_json::Value) -> Vec<Vec3> {
@@ -95,7 +99,7 @@ fn surface_samples(field: &Field, p: Vec3, n: Vec3, slack: f32) -> Vec<(Vec3, f3
 /// the training cameras.
 pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Vec3]) -> [f32; 3] {
     let samples = surface_samples(field, p, n, slack);
-    let facing: Vec<(Vec3, f32)> = centres
+    let mut facing: Vec<(Vec3, f32)> = centres
         .iter()
         .filter_map(|c| {
             let to_cam = (*c - p).normalize_or_zero();
@@ -103,6 +107,9 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Ve
             (cos > 0.05).then_some((-to_cam, cos))
         })
         .collect();
+    // The most head-on cameras only: they see the point sharpest, and the cost stays bounded.
+    facing.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+    facing.truncate(MAX_CAMERAS);
     if field.net.is_some() || facing.is_empty() {
         let mut basis = [0f32; SH_TERMS];
         match field.net {
@@ -112,33 +119,61 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Ve
         return composite(&samples, |q| colour_at(field, q, -n, &basis))
             .unwrap_or_else(|| colour_at(field, p, -n, &basis));
     }
-    // SH colour: the channels once per sample, shaded for every camera.
-    let k = field.sh_k();
-    let samples = match samples.iter().map(|s| s.1).sum::<f32>() > 1e-6 {
-        true => samples,
-        false => vec![(p, 1.0)],
-    };
-    let feats: Vec<[f32; MAX_CHANNELS]> = samples
-        .iter()
-        .map(|(q, _)| channels_at(field, *q))
-        .collect();
-    let weights: Vec<f32> = samples.iter().map(|s| s.1).collect();
-    let wsum: f32 = weights.iter().sum();
+    // SH colour: what each camera's ray through the point shows (so a mesh a little off the
+    // field's surface still shows what the cameras saw there), weighted by the cosine.
     let mut acc = [0f32; 3];
     let mut csum = 0f32;
-    let mut basis = [0f32; SH_TERMS];
     for (dir, cos) in &facing {
-        sh_basis(field.config.sh_degree, *dir, &mut basis);
-        for (feat, w) in feats.iter().zip(&weights) {
-            for (c, a) in acc.iter_mut().enumerate() {
-                let coef = &feat[c * k..(c + 1) * k];
-                let v = sigmoid(coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum());
-                *a += cos * w / wsum * v;
-            }
-        }
+        let Some(c) = along_ray(field, p, *dir, slack / cos.max(0.25)) else {
+            continue;
+        };
+        (0..3).for_each(|k| acc[k] += cos * c[k]);
         csum += cos;
     }
+    if csum <= 0.0 {
+        let mut basis = [0f32; SH_TERMS];
+        basis[0] = 0.282_094_8;
+        return composite(&samples, |q| colour_at(field, q, -n, &basis))
+            .unwrap_or_else(|| colour_at(field, p, -n, &basis));
+    }
     acc.map(|a| (a / csum).clamp(0.0, 1.0))
+}
+
+/// The SH colour composited along the ray of direction `dir` through `p`, from half a voxel (and
+/// `slack`) before it to two voxels (and `slack`) past it; None where that ray meets nothing.
+fn along_ray(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Option<[f32; 3]> {
+    let step = 0.25 * field.voxel;
+    let delta = step / field.config.base_voxel;
+    let shift = field.shift();
+    let k = field.sh_k();
+    let mut basis = [0f32; SH_TERMS];
+    sh_basis(field.config.sh_degree, dir, &mut basis);
+    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
+    let mut trans = 1.0f32;
+    let mut acc = [0f32; 3];
+    let mut wsum = 0f32;
+    for i in -2 - extra..8 + extra {
+        let q = p + dir * (i as f32 * step);
+        let raw = raw_at(field, q);
+        if raw <= EMPTY {
+            continue;
+        }
+        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
+        let w = trans * alpha;
+        if w > 0.0 {
+            let feat = channels_at(field, q);
+            for (c, a) in acc.iter_mut().enumerate() {
+                let coef = &feat[c * k..(c + 1) * k];
+                *a += w * sigmoid(coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum());
+            }
+            wsum += w;
+        }
+        trans *= 1.0 - alpha;
+        if trans < 1e-3 {
+            break;
+        }
+    }
+    (wsum > 0.2).then(|| acc.map(|a| a / wsum))
 }
 
 /// The weighted mean of `colour` over `samples` (None: no weight).

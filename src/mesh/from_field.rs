@@ -239,7 +239,7 @@ pub fn mesh_model(
         opts.seen_from = view_centres(&model.notes);
     }
     if format != MeshFormat::Glb {
-        opts.export.texture_size = None;
+        opts.export.texture = None;
     }
     let (full, report) = mesh_field(&model.field, name, &opts, up)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;

@@ -12,9 +12,62 @@ use crate::field::model::Field;
 use serde::Serialize;
 use std::time::Instant;
 
-/// The default texture: 2048 px, nerfstudio's upper default and what a 50k-triangle object needs
-/// for texels finer than its field's voxels (measured in `examples/results/textured_mesh.md`).
-pub const DEFAULT_TEXTURE_SIZE: u32 = 2048;
+/// The baked texture's size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TextureSize {
+    /// Texels of half the field's finest voxel over the mesh's surface (the field holds no finer
+    /// colour: its colour is trilinear between voxel corners, and a voxel is sized to about one
+    /// photo pixel), as a power of two from [`AUTO_MIN`] to [`AUTO_MAX`].
+    Auto,
+    /// This many texels a side.
+    Side(u32),
+}
+
+/// The smallest and largest automatic texture sides (nerfstudio bakes 1024–2048).
+pub const AUTO_MIN: u32 = 512;
+pub const AUTO_MAX: u32 = 4096;
+
+/// Texels per finest voxel, along each side, for [`TextureSize::Auto`].
+const TEXELS_PER_VOXEL: f32 = 2.0;
+
+/// The share of a page the atlas is expected to cover (measured: 0.53–0.69).
+const EXPECTED_USE: f32 = 0.5;
+
+impl TextureSize {
+    /// The side for `mesh` (world units) of a field with finest voxel `voxel`.
+    pub fn side(self, mesh: &Mesh, voxel: f32) -> u32 {
+        match self {
+            TextureSize::Side(s) => s,
+            TextureSize::Auto => {
+                let area = surface_area(mesh) as f32;
+                let texels = area * (TEXELS_PER_VOXEL / voxel).powi(2) / EXPECTED_USE;
+                let side = texels.sqrt().ceil().max(1.0) as u32;
+                side.next_power_of_two().clamp(AUTO_MIN, AUTO_MAX)
+            }
+        }
+    }
+
+    /// `auto` or a number of texels.
+    pub fn parse(s: &str) -> Result<TextureSize> {
+        if s.eq_ignore_ascii_case("auto") {
+            return Ok(TextureSize::Auto);
+        }
+        s.parse().map(TextureSize::Side).map_err(|_| {
+            crate::error::Error::invalid(format!(
+                "--texture {s}: expected auto or a size in pixels"
+            ))
+        })
+    }
+}
+
+/// The mesh's surface area (world units squared).
+fn surface_area(mesh: &Mesh) -> f64 {
+    let p = |i: u32| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3();
+    mesh.triangles
+        .iter()
+        .map(|t| 0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length())
+        .sum()
+}
 
 /// How the exported mesh is made from the full one.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,8 +76,8 @@ pub struct ExportOptions {
     pub max_triangles: Option<usize>,
     /// Decimation stops where the surface would move this many finest voxels.
     pub tolerance_voxels: f32,
-    /// Side of the baked base-colour texture (None: vertex colours, no texture).
-    pub texture_size: Option<u32>,
+    /// The baked base-colour texture (None: vertex colours, no texture).
+    pub texture: Option<TextureSize>,
     pub shading: Shading,
 }
 
@@ -33,7 +86,7 @@ impl Default for ExportOptions {
         ExportOptions {
             max_triangles: Some(DEFAULT_MAX_TRIANGLES),
             tolerance_voxels: DEFAULT_TOLERANCE_VOXELS,
-            texture_size: Some(DEFAULT_TEXTURE_SIZE),
+            texture: Some(TextureSize::Auto),
             shading: Shading::Unlit,
         }
     }
@@ -78,7 +131,8 @@ pub fn export_mesh(
     };
     report.decimate_seconds = t.elapsed().as_secs_f64();
     mesh.shading = opts.shading;
-    if let Some(size) = opts.texture_size {
+    if let Some(texture) = opts.texture {
+        let size = texture.side(&mesh, field.voxel);
         let t = Instant::now();
         let (mut m, atlas) = unwrap(&mesh, size)?;
         report.unwrap_seconds = t.elapsed().as_secs_f64();
