@@ -6,10 +6,16 @@
 //!
 //!     objnerf demo --out runs/demo            # the demo mug, its held-out views and truth masks
 //!     cargo run --release --example textured_mesh_bench -- --run runs/demo [--object mug]
+//!     objnerf train ../shared/data/lego/transforms_train.json --masks alpha --downscale 2 \
+//!         --time-budget 240 --out runs/lego.objf
+//!     target/release/examples/textured_mesh_bench --model runs/lego.objf --name textured_mesh_lego \
+//!         --scene ../shared/data/lego/transforms_test.json --every 20 --downscale 2
 //!
 //! `--run` is an `objnerf demo` folder (scene/ with truth/masks, run/<object>/model.objf, and
-//! run/report.json naming the held-out views). Writes `textured_mesh.json` and
-//! `textured_mesh.svg` into `--out` (default examples/results).
+//! run/report.json naming the held-out views); `--model` with `--scene` scores on every
+//! `--every`-th view of a scene the model was not trained on, its mask the images' alpha.
+//! Writes `NAME.json` and `NAME.svg` (`--name`, default textured_mesh) into `--out` (default
+//! examples/results).
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -95,7 +101,7 @@ fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
-    let run = PathBuf::from(arg(&args, "--run").ok_or("--run DEMO_FOLDER is required")?);
+    let run = arg(&args, "--run").map(PathBuf::from);
     let object = arg(&args, "--object").unwrap_or_else(|| "mug".into());
     let out = PathBuf::from(arg(&args, "--out").unwrap_or_else(|| "examples/results".into()));
     let budgets: Vec<usize> = arg(&args, "--budgets")
@@ -109,22 +115,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(str::parse)
         .collect::<Result<_, _>>()?;
 
-    let scene = Scene::load(&run.join("scene"))?;
-    let model_path = run.join("run").join(&object).join("model.objf");
+    let (model_path, views) = match &run {
+        Some(run) => demo_views(run, &object)?,
+        None => capture_views(&args)?,
+    };
     let model = objnerf::field::io::load_field(&model_path)?;
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("run/report.json"))?)?;
-    let held: Vec<String> = report["objects"][0]["segmentation"]["held_out"]
-        .as_array()
-        .ok_or("report.json names no held-out views")?
-        .iter()
-        .filter_map(|v| v.as_str().map(str::to_string))
-        .collect();
-    let masks = MaskSource::Dir(run.join("scene/truth/masks").join(&object));
-    let views: Vec<_> = load_views(&scene, &masks, 1)?
-        .into_iter()
-        .filter(|v| held.contains(&v.cam.name))
-        .collect();
     let frame = GltfFrame::for_model(&model, None)?;
     let up = glam::DVec3::from_array(frame.up);
     let t = Instant::now();
@@ -208,7 +203,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let result = serde_json::json!({
         "what": format!("the {object} of an objnerf demo run: its full marching-cubes mesh (vertex colours) and exported meshes (decimated to a budget within a {DEFAULT_TOLERANCE_VOXELS}-voxel tolerance, UV atlas, base colour baked from the field), drawn by objnerf's rasteriser (no lighting: the unlit material) at the {} held-out views, PSNR over the pixels inside the true mask (uncovered pixels count as white); Chamfer to the full mesh with 50k samples a side", s.views.len()),
-        "command": format!("cargo run --release --example textured_mesh_bench -- --run {} --object {object}", run.display()),
+        "command": format!("cargo run --release --example textured_mesh_bench -- {}", args[1..].join(" ")),
         "machine": machine(),
         "git_commit": git_commit(),
         "full_mesh": { "triangles": s.full.triangles.len(), "psnr_in_mask": full_psnr, "marching_cubes_seconds": full_seconds, "box_diagonal": diag },
@@ -225,13 +220,54 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
     });
     std::fs::create_dir_all(&out)?;
+    let stem = arg(&args, "--name").unwrap_or_else(|| "textured_mesh".into());
     std::fs::write(
-        out.join("textured_mesh.json"),
+        out.join(format!("{stem}.json")),
         serde_json::to_string_pretty(&result)? + "\n",
     )?;
-    write_chart(&out.join("textured_mesh.svg"), &result)?;
+    write_chart(&out.join(format!("{stem}.svg")), &result)?;
     println!("{}", serde_json::to_string_pretty(&result["default"])?);
     Ok(())
+}
+
+type Views = (PathBuf, Vec<objnerf::field::View>);
+
+/// A demo run's model and its held-out views with their true masks.
+fn demo_views(run: &Path, object: &str) -> Result<Views, Box<dyn std::error::Error>> {
+    let scene = Scene::load(&run.join("scene"))?;
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("run/report.json"))?)?;
+    let held: Vec<String> = report["objects"][0]["segmentation"]["held_out"]
+        .as_array()
+        .ok_or("report.json names no held-out views")?
+        .iter()
+        .filter_map(|v| v.as_str().map(str::to_string))
+        .collect();
+    let masks = MaskSource::Dir(run.join("scene/truth/masks").join(object));
+    let views = load_views(&scene, &masks, 1)?
+        .into_iter()
+        .filter(|v| held.contains(&v.cam.name))
+        .collect();
+    Ok((run.join("run").join(object).join("model.objf"), views))
+}
+
+/// `--model M --scene S [--masks alpha] [--every N] [--downscale F]`: a model and every N-th
+/// view of a scene it was not trained on (lego's test views), masks from the images' alpha.
+fn capture_views(args: &[String]) -> Result<Views, Box<dyn std::error::Error>> {
+    let model = PathBuf::from(arg(args, "--model").ok_or("give --run or --model and --scene")?);
+    let scene_path = PathBuf::from(arg(args, "--scene").ok_or("--scene is required")?);
+    let every: usize = arg(args, "--every").map_or(Ok(20), |s| s.parse())?;
+    let factor: u32 = arg(args, "--downscale").map_or(Ok(1), |s| s.parse())?;
+    let scene = Scene::load(&scene_path)?;
+    let masks = MaskSource::parse(
+        &arg(args, "--masks").unwrap_or_else(|| "alpha".into()),
+        &scene_path,
+    )?;
+    let views = load_views(&scene, &masks, factor)?
+        .into_iter()
+        .step_by(every.max(1))
+        .collect();
+    Ok((model, views))
 }
 
 fn points(v: &serde_json::Value, x: &str, y: &str, x_scale: f64) -> Vec<(f64, f64)> {
