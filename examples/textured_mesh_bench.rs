@@ -51,11 +51,14 @@ struct Variant {
     glb_bytes: u64,
     chamfer_to_full: f64,
     chamfer_to_full_fraction_of_diagonal: f64,
+    /// To the true mesh, where there is one (the demo), as a fraction of its box diagonal.
+    chamfer_to_truth_fraction_of_diagonal: Option<f64>,
     export_seconds: f64,
     atlas_utilization: Option<f32>,
 }
 
 struct Setup {
+    truth: Option<(Mesh, f64)>,
     field: objnerf::field::Field,
     mesh_opts: FieldMeshOptions,
     full: Mesh,
@@ -83,17 +86,22 @@ fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
         glb_bytes: std::fs::metadata(&glb).map(|m| m.len()).unwrap_or(0),
         chamfer_to_full: cd,
         chamfer_to_full_fraction_of_diagonal: cd / s.diag,
+        chamfer_to_truth_fraction_of_diagonal: s
+            .truth
+            .as_ref()
+            .map(|(t, d)| chamfer_distance(&mesh, t, 50_000, 7) / d),
         export_seconds,
         atlas_utilization: report.atlas.as_ref().map(|a| a.utilization),
     };
     eprintln!(
-        "budget {:?} texture {:?}: {} triangles, {:.2} dB, {} kB, Chamfer {:.3}% diag, {:.1} s",
+        "budget {:?} texture {:?}: {} triangles, {:.2} dB, {} kB, Chamfer {:.3}% diag (truth {:?}), {:.1} s",
         v.budget,
         v.texture,
         v.triangles,
         v.psnr_in_mask,
         v.glb_bytes / 1000,
         100.0 * v.chamfer_to_full_fraction_of_diagonal,
+        v.chamfer_to_truth_fraction_of_diagonal.map(|c| 100.0 * c),
         v.export_seconds
     );
     v
@@ -102,7 +110,11 @@ fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let run = arg(&args, "--run").map(PathBuf::from);
-    let object = arg(&args, "--object").unwrap_or_else(|| "mug".into());
+    let object = arg(&args, "--object").unwrap_or_else(|| {
+        arg(&args, "--model")
+            .and_then(|m| Some(Path::new(&m).file_stem()?.to_string_lossy().to_string()))
+            .unwrap_or_else(|| "mug".into())
+    });
     let out = PathBuf::from(arg(&args, "--out").unwrap_or_else(|| "examples/results".into()));
     let budgets: Vec<usize> = arg(&args, "--budgets")
         .unwrap_or_else(|| "1000,2000,3000,5000,10000,50000".into())
@@ -137,7 +149,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let full_seconds = t.elapsed().as_secs_f64();
     let (lo, hi) = full.bounds();
     let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) as f64;
+    let truth = run.as_ref().and_then(|r| {
+        let t = objnerf::mesh::io::read_ply(&r.join(format!("scene/truth/meshes/{object}.ply")))
+            .ok()?;
+        let (lo, hi) = t.bounds();
+        let d = glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) as f64;
+        Some((t, d))
+    });
     let s = Setup {
+        truth,
         field: model.field,
         mesh_opts,
         full,

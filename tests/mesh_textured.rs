@@ -226,7 +226,7 @@ fn the_textured_mesh_draws_like_the_field() {
             let eye = glam::DVec3::new(2.0 * a.cos(), 2.0 * a.sin(), z);
             let pose = Pose::look_at(eye, glam::DVec3::ZERO, glam::DVec3::Z);
             let cam = Camera::pinhole(96, 96, 120.0, 120.0, 48.0, 48.0);
-            let rc = RayCamera::new("t".into(), cam.clone(), pose.clone());
+            let rc = RayCamera::new("t".into(), cam.clone(), pose);
             let r =
                 objnerf::field::eval::render_view(&field, &RenderOptions::default(), &rc, [0.0; 3]);
             let rgba = r

@@ -37,15 +37,23 @@ pub fn unwrap(mesh: &Mesh, size: u32) -> Result<(Mesh, AtlasReport)> {
         )));
     }
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-    let padding = padding_for(size);
-    let options = uvunwrap::Options {
-        density: uvunwrap::Density::Auto { page_size: size },
-        padding,
-        ..Default::default()
-    };
     let input = uvunwrap::MeshInput::new(&mesh.positions, &indices);
-    let atlas = uvunwrap::generate(&[input], &options)
-        .map_err(|e| Error::invalid(format!("UV unwrap of '{}': {e}", mesh.name)))?;
+    // Many small charts (a detailed mesh) may not fit one page with their padding: halve the
+    // padding until they do.
+    let mut padding = padding_for(size);
+    let atlas = loop {
+        let options = uvunwrap::Options {
+            density: uvunwrap::Density::Auto { page_size: size },
+            padding,
+            ..Default::default()
+        };
+        let atlas = uvunwrap::generate(std::slice::from_ref(&input), &options)
+            .map_err(|e| Error::invalid(format!("UV unwrap of '{}': {e}", mesh.name)))?;
+        if atlas.page_count == 1 || padding == 1 {
+            break atlas;
+        }
+        padding /= 2;
+    };
     if atlas.page_count != 1 {
         return Err(Error::invalid(format!(
             "UV unwrap of '{}': its {} charts do not fit one {size} px page; use a larger texture \

@@ -88,7 +88,7 @@ impl Placement {
                 let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, u), y| {
                     (l.min(y), u.max(y))
                 });
-                if !(hi > lo) {
+                if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
                     return Err(Error::invalid(
                         "the mesh has no height to scale to a given height",
                     ));

@@ -227,7 +227,7 @@ impl GlbBuilder {
             },
             name: Some(format!("{}_material", mesh.name)),
             double_sided: false,
-            extensions: unlit.then(|| json::extensions::material::Material {
+            extensions: unlit.then_some(json::extensions::material::Material {
                 unlit: Some(json::extensions::material::Unlit {}),
             }),
             ..Default::default()
