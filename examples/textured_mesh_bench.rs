@@ -73,7 +73,14 @@ fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
         export: opts.clone(),
         ..s.mesh_opts.clone()
     };
-    let (mesh, report) = export_mesh(&s.field, &s.full, &mesh_opts).expect("export");
+    let (mesh, report) = export_mesh(
+        &s.field,
+        &s.full,
+        &mesh_opts.export,
+        &mesh_opts.seen_from,
+        None,
+    )
+    .expect("export");
     let export_seconds = t.elapsed().as_secs_f64();
     let glb = dir.join("m.glb");
     write_mesh(&mesh, Some(&s.frame), &glb).expect("write glb");

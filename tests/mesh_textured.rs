@@ -256,7 +256,14 @@ fn the_textured_mesh_draws_like_the_field() {
         },
         ..opts
     };
-    let (textured, report) = export_mesh(&field, &full, &textured_opts).unwrap();
+    let (textured, report) = export_mesh(
+        &field,
+        &full,
+        &textured_opts.export,
+        &textured_opts.seen_from,
+        None,
+    )
+    .unwrap();
     assert!(textured.triangles.len() <= full.triangles.len() / 5);
     let tex_psnr = masked_psnr(&textured, &views);
     println!(

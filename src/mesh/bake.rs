@@ -8,8 +8,8 @@
 //! seam read the chart's own colour, and what is still empty takes the mean colour.
 
 use super::colour::surface_colour;
-use super::from_field::FieldMeshOptions;
 use super::Mesh;
+use crate::edit::Recolour;
 use crate::error::{Error, Result};
 use crate::field::model::Field;
 use glam::Vec3;
@@ -30,20 +30,21 @@ const DILATE_RINGS: usize = 16;
 
 /// Bake the base colour of `mesh` (with `uvs`, in the field's world frame) into a `size` x
 /// `size` sRGB image. `slack`: how far (world units) the mesh may lie off the field's surface;
-/// `opts.seen_from` and `opts.recolour`: as for vertex colours.
+/// `seen_from` (the training cameras) and `recolour`: as for vertex colours.
 pub fn bake_base_colour(
     field: &Field,
     mesh: &Mesh,
     size: u32,
     slack: f32,
-    opts: &FieldMeshOptions,
+    seen_from: &[Vec3],
+    recolour: Option<Recolour>,
 ) -> Result<(image::RgbImage, BakeReport)> {
     let uvs = mesh
         .uvs
         .as_ref()
         .ok_or_else(|| Error::invalid(format!("'{}' has no UVs to bake into", mesh.name)))?;
     let s = size as usize;
-    let recolour = opts.recolour.map(|r| r.prepare());
+    let recolour = recolour.map(|r| r.prepare());
     // Each triangle's texels (atlas charts do not overlap, so each texel comes once).
     let texels: Vec<(usize, [f32; 3])> = mesh
         .triangles
@@ -56,7 +57,7 @@ pub fn bake_base_colour(
             for_texels_in(uv, s, |idx, w| {
                 let q = p[0] * w[0] + p[1] * w[1] + p[2] * w[2];
                 let nq = (n[0] * w[0] + n[1] * w[1] + n[2] * w[2]).normalize_or(n[0]);
-                let c = surface_colour(field, q, nq, slack, &opts.seen_from);
+                let c = surface_colour(field, q, nq, slack, seen_from);
                 out.push((idx, recolour.map_or(c, |r| r.apply(c))));
             });
             out.into_iter()

@@ -14,7 +14,6 @@
 //! too costly for every camera at every texel).
 
 use super::fill::EMPTY;
-use super::from_field::raw_at;
 use crate::field::activation::sigmoid;
 use crate::field::colour_net::MAX_ACTIVATIONS;
 use crate::field::model::{Field, MAX_CHANNELS};
@@ -39,6 +38,22 @@ pub fn view_centres(notes: &serde_json::Value) -> Vec<Vec3> {
             (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| Vec3::new(v[0], v[1], v[2]))
         })
         .collect()
+}
+
+/// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
+pub(crate) fn raw_at(field: &Field, p: Vec3) -> f32 {
+    let g = field.to_grid(p);
+    let dims = field.grid.dims;
+    let inside = (0..3).all(|a| g[a] >= 0.0 && g[a] <= (dims[a] - 1) as f32);
+    if !inside {
+        return EMPTY;
+    }
+    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
+    if !field.occupied(b) {
+        return EMPTY;
+    }
+    let k = field.grid.corners_of(b, fr);
+    field.grid.interp_density(&k)
 }
 
 /// The grid corners and colour channels at a world point (clamped into the grid).

@@ -7,7 +7,7 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
-use super::colour::{surface_colour, view_centres};
+use super::colour::{raw_at, surface_colour, view_centres};
 use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
 use super::frame::{GltfFrame, Placement};
 use super::io::MeshFormat;
@@ -83,22 +83,6 @@ pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
         )));
     }
     Ok(field.raw_for_alpha(iso_alpha, 1.0))
-}
-
-/// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
-pub(crate) fn raw_at(field: &Field, p: Vec3) -> f32 {
-    let g = field.to_grid(p);
-    let dims = field.grid.dims;
-    let inside = (0..3).all(|a| g[a] >= 0.0 && g[a] <= (dims[a] - 1) as f32);
-    if !inside {
-        return EMPTY;
-    }
-    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
-    if !field.occupied(b) {
-        return EMPTY;
-    }
-    let k = field.grid.corners_of(b, fr);
-    field.grid.interp_density(&k)
 }
 
 /// Cut `field` at `opts.iso_alpha` into a mesh in the field's world units, with normals and
@@ -243,8 +227,14 @@ pub fn mesh_model(
     }
     let (full, report) = mesh_field(&model.field, name, &opts, up)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
-    let (mesh, export) = export_mesh(&model.field, &full, &opts)
-        .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
+    let (mesh, export) = export_mesh(
+        &model.field,
+        &full,
+        &opts.export,
+        &opts.seen_from,
+        opts.recolour,
+    )
+    .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
     let frame = match format.needs_frame() {
         true => Some(opts.placement.frame(&frame?, &mesh.positions)?),
         false => frame.ok(),

@@ -5,10 +5,11 @@
 use super::atlas::{unwrap, AtlasReport};
 use super::bake::{bake_base_colour, BakeReport};
 use super::decimate::{decimate, DecimateReport, DEFAULT_MAX_TRIANGLES, DEFAULT_TOLERANCE_VOXELS};
-use super::from_field::FieldMeshOptions;
 use super::{Mesh, Shading};
+use crate::edit::Recolour;
 use crate::error::Result;
 use crate::field::model::Field;
+use glam::Vec3;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -107,14 +108,15 @@ pub struct ExportReport {
 }
 
 /// The mesh to write, from `full` (the field's marching-cubes mesh with vertex colours, in the
-/// field's world frame), as `mesh_opts.export` says (its colours read as the vertex colours
-/// were: `seen_from`, `recolour`).
+/// field's world frame), as `opts` says; its colours read as the vertex colours were (the
+/// training cameras at `seen_from`, `recolour`).
 pub fn export_mesh(
     field: &Field,
     full: &Mesh,
-    mesh_opts: &FieldMeshOptions,
+    opts: &ExportOptions,
+    seen_from: &[Vec3],
+    recolour: Option<Recolour>,
 ) -> Result<(Mesh, ExportReport)> {
-    let opts = &mesh_opts.export;
     let mut report = ExportReport {
         shading: opts.shading,
         ..Default::default()
@@ -139,7 +141,7 @@ pub fn export_mesh(
         let t = Instant::now();
         // The bake reads the field around each texel out to the decimation's own error.
         let slack = report.decimate.as_ref().map_or(0.0, |d| d.error);
-        let (img, bake) = bake_base_colour(field, &m, size, slack, mesh_opts)?;
+        let (img, bake) = bake_base_colour(field, &m, size, slack, seen_from, recolour)?;
         report.bake_seconds = t.elapsed().as_secs_f64();
         m.colors = None;
         m.texture = Some(std::sync::Arc::new(img));

@@ -292,8 +292,14 @@ fn extract_object(
     let up = DVec3::from_array(frame.up);
     let (full, mesh_report) = mesh_field(field, &obj.name, &mesh_opts, Some(up))
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
-    let (mesh, export) = export_mesh(field, &full, &mesh_opts)
-        .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
+    let (mesh, export) = export_mesh(
+        field,
+        &full,
+        &mesh_opts.export,
+        &mesh_opts.seen_from,
+        mesh_opts.recolour,
+    )
+    .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
     let object_frame = opts.mesh.placement.frame(frame, &mesh.positions)?;
     write_mesh(&mesh, Some(&object_frame), &dir.join("mesh.glb"))?;
     write_mesh(&full, Some(frame), &dir.join("mesh.ply"))?;
