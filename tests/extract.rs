@@ -261,6 +261,7 @@ fn mesh_command_errors_are_clear() {
         ("--height", "0", "positive"),
     ] {
         let out = dir.path().join(format!("bad{}.glb", &flag[2..]));
+        let given = format!("{flag}={value}");
         let (ok, err) = mesh_cmd(&[
             model.as_os_str(),
             "--out".as_ref(),
@@ -269,8 +270,7 @@ fn mesh_command_errors_are_clear() {
             "0.001".as_ref(),
             "--up".as_ref(),
             "+z".as_ref(),
-            flag.as_ref(),
-            value.as_ref(),
+            given.as_ref(),
         ]);
         assert!(!ok && err.contains(says), "{flag} {value}: {err}");
         assert!(!out.exists(), "{flag} {value}");
