@@ -21,11 +21,11 @@ pub struct AtlasReport {
     pub vertices_after: usize,
 }
 
-/// Empty texels around each chart: enough that bilinear filtering and the first mip levels
-/// read the chart's own (dilated) colour, scaled with the page (2 at 512, 4 at 1024, 8 at 2048).
-pub fn padding_for(size: u32) -> u32 {
-    (size / 256).max(2)
-}
+/// Empty texels around each chart (the bake dilates the charts' colour into them, so bilinear
+/// filtering at a seam reads the chart's own colour). Two, not more: a detailed mesh has many
+/// charts (lego at 50k triangles: 11 775), and 8 texels around each left them 0.75% of a
+/// 2048 px page.
+pub const PADDING: u32 = 2;
 
 /// Unwrap `mesh` into a `size` x `size` page. The result has the same triangles in the same
 /// order, vertices split along chart seams (positions, normals and colours copied) and `uvs`
@@ -40,7 +40,7 @@ pub fn unwrap(mesh: &Mesh, size: u32) -> Result<(Mesh, AtlasReport)> {
     let input = uvunwrap::MeshInput::new(&mesh.positions, &indices);
     // Many small charts (a detailed mesh) may not fit one page with their padding: halve the
     // padding until they do.
-    let mut padding = padding_for(size);
+    let mut padding = PADDING;
     let atlas = loop {
         let options = uvunwrap::Options {
             density: uvunwrap::Density::Auto { page_size: size },
