@@ -135,10 +135,19 @@ fn print_summary(r: &ExtractReport) {
             o.train.run.final_psnr,
             o.model.display()
         );
+        let texture = o
+            .export
+            .atlas
+            .as_ref()
+            .map_or("vertex colours".to_string(), |a| {
+                format!("{0}x{0} px texture", a.size)
+            });
         println!(
-            "  mesh: {} vertices, {} triangles -> {}",
-            o.mesh.vertices,
+            "  mesh: {} triangles ({} in the full mesh.ply), {texture}, {:?}, origin {:?} -> {}",
+            o.export.triangles,
             o.mesh.triangles,
+            o.export.shading,
+            o.frame.origin,
             o.mesh_glb.display()
         );
         println!("  turntable: {}", o.turntable_gif.display());
