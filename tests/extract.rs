@@ -104,16 +104,21 @@ fn extract_every_demo_object_close_to_its_true_mesh() {
             "validator errors in {}: {v}",
             glb.display()
         );
+        // mesh.glb: decimated and textured (unlit); mesh.ply: the full mesh.
         let counts = glb_counts(&glb);
-        let (verts, tris) = (
-            o["mesh"]["vertices"].as_u64().unwrap() as usize,
-            o["mesh"]["triangles"].as_u64().unwrap() as usize,
-        );
+        let count = |k: &str, n: &str| o[k][n].as_u64().unwrap() as usize;
+        let (verts, tris) = (count("export", "vertices"), count("export", "triangles"));
         assert_eq!(counts, vec![(t.name.clone(), verts, tris)]);
         assert!(in_all.contains(&(t.name.clone(), verts, tris)));
+        assert!(tris <= count("mesh", "triangles"));
+        assert_eq!(v["info"]["extensionsUsed"][0], "KHR_materials_unlit", "{v}");
+        assert_eq!(v["info"]["hasTextures"], true, "{v}");
 
         let ours = read_ply(&obj_dir.join("mesh.ply")).unwrap();
-        assert_eq!((ours.positions.len(), ours.triangles.len()), (verts, tris));
+        assert_eq!(
+            (ours.positions.len(), ours.triangles.len()),
+            (count("mesh", "vertices"), count("mesh", "triangles"))
+        );
         let true_mesh = read_ply(&scene.join(format!("truth/meshes/{}.ply", t.name))).unwrap();
         let (lo, hi) = true_mesh.bounds();
         let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) as f64;
@@ -244,6 +249,31 @@ fn mesh_command_errors_are_clear() {
             value.as_ref(),
         ]);
         assert!(!ok && err.contains(says), "{flag} {value}: {err}");
+    }
+    // The mesh's export options, on a model that meshes: a clear error and nothing written.
+    for (flag, value, says) in [
+        ("--material", "shiny", "expected unlit or pbr"),
+        ("--origin", "top", "expected base, centre or capture"),
+        ("--texture", "8", "16 to 16384"),
+        ("--texture", "big", "expected auto or a size"),
+        ("--triangles", "0", "budget of 0"),
+        ("--scale", "-1", "positive"),
+        ("--height", "0", "positive"),
+    ] {
+        let out = dir.path().join(format!("bad{}.glb", &flag[2..]));
+        let given = format!("{flag}={value}");
+        let (ok, err) = mesh_cmd(&[
+            model.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+            "--iso".as_ref(),
+            "0.001".as_ref(),
+            "--up".as_ref(),
+            "+z".as_ref(),
+            given.as_ref(),
+        ]);
+        assert!(!ok && err.contains(says), "{flag} {value}: {err}");
+        assert!(!out.exists(), "{flag} {value}");
     }
     let (ok, err) = mesh_cmd(&[
         model.as_os_str(),

@@ -94,16 +94,29 @@ def add_cameras(context, root, collection, tf, set_render=True, backgrounds=True
 
 
 def _colour_material(name):
-    """A material showing the colour attribute (vertex colours) in Cycles and EEVEE."""
+    """A material showing the colour attribute (vertex colours) as captured, unlit: emission for
+    camera rays and transparent to every other ray, the node setup Blender's own glTF importer
+    builds for KHR_materials_unlit (objnerf's .glb default). A radiance field's colour already
+    holds the capture's lighting: shaded by the scene's lights it would be lit twice."""
     mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
     mat = bpy.data.materials.new(name)
     nt = compat.material_nodes(mat)
-    bsdf = nt.nodes.get("Principled BSDF")
+    out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    for n in [n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"]:
+        nt.nodes.remove(n)
     attr = nt.nodes.new("ShaderNodeAttribute")
     attr.attribute_name = COLOUR_ATTR
-    nt.links.new(attr.outputs["Color"], bsdf.inputs["Base Color"])
+    emit = nt.nodes.new("ShaderNodeEmission")
+    nt.links.new(attr.outputs["Color"], emit.inputs["Color"])
+    path = nt.nodes.new("ShaderNodeLightPath")
+    clear = nt.nodes.new("ShaderNodeBsdfTransparent")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    nt.links.new(clear.outputs["BSDF"], mix.inputs[1])
+    nt.links.new(emit.outputs["Emission"], mix.inputs[2])
+    nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
     return mat
 
 

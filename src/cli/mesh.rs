@@ -1,11 +1,74 @@
-//! `objnerf mesh`: marching cubes on a trained model.
+//! `objnerf mesh`: marching cubes on a trained model, decimated and textured.
 
 use clap::Args;
 use glam::DVec3;
 use objnerf::edit::Recolour;
+use objnerf::mesh::decimate::DEFAULT_MAX_TRIANGLES;
+use objnerf::mesh::frame::{Origin, Placement};
 use objnerf::mesh::from_field::{mesh_model, FieldMeshOptions};
+use objnerf::mesh::textured::{ExportOptions, TextureSize};
+use objnerf::mesh::Shading;
 use objnerf::{Error, Result};
 use std::path::PathBuf;
+
+/// How the written mesh is made (shared by `mesh` and `extract`).
+#[derive(Args, Debug)]
+pub struct MeshExportArgs {
+    /// Triangle budget: the mesh is decimated to at most this many triangles.
+    #[arg(long, default_value_t = DEFAULT_MAX_TRIANGLES, conflicts_with = "full")]
+    pub triangles: usize,
+    /// Keep the full marching-cubes mesh (no decimation).
+    #[arg(long)]
+    pub full: bool,
+    /// Side of the baked base-colour texture in pixels (.glb), or auto: texels of half the
+    /// field's finest voxel, a power of two from 512 to 4096.
+    #[arg(long, default_value = "auto")]
+    pub texture: String,
+    /// Vertex colours instead of a UV atlas and baked texture.
+    #[arg(long)]
+    pub vertex_colours: bool,
+    /// The glTF material: unlit (KHR_materials_unlit: the colour as captured) or pbr (lit by
+    /// the viewer).
+    #[arg(long, default_value = "unlit")]
+    pub material: String,
+    /// Metres per capture unit (the glTF is then in metres).
+    #[arg(long, conflicts_with = "height")]
+    pub scale: Option<f64>,
+    /// The object's height along up in metres: sets the scale.
+    #[arg(long)]
+    pub height: Option<f64>,
+}
+
+impl MeshExportArgs {
+    pub fn export(&self) -> Result<ExportOptions> {
+        let shading = match self.material.to_ascii_lowercase().as_str() {
+            "unlit" => Shading::Unlit,
+            "pbr" => Shading::Pbr,
+            m => {
+                return Err(Error::invalid(format!(
+                    "--material {m}: expected unlit or pbr"
+                )))
+            }
+        };
+        Ok(ExportOptions {
+            max_triangles: (!self.full).then_some(self.triangles),
+            texture: match self.vertex_colours {
+                true => None,
+                false => Some(TextureSize::parse(&self.texture)?),
+            },
+            shading,
+            ..Default::default()
+        })
+    }
+
+    pub fn placement(&self, origin: Origin) -> Placement {
+        Placement {
+            origin,
+            metres_per_unit: self.scale,
+            height_metres: self.height,
+        }
+    }
+}
 
 #[derive(Args, Debug)]
 pub struct MeshCmd {
@@ -39,6 +102,14 @@ pub struct MeshCmd {
     /// How far to recolour (0..1).
     #[arg(long, default_value_t = 1.0, requires = "recolour")]
     pub recolour_strength: f32,
+    #[command(flatten)]
+    pub export: MeshExportArgs,
+    /// The glTF origin: base (the object stands at 0), centre, or capture (the capture's own).
+    #[arg(long, default_value = "base")]
+    pub origin: String,
+    /// Print what was written as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Parse `--up`.
@@ -79,13 +150,21 @@ impl MeshCmd {
                 .map(|r| Recolour::from_spec(r, self.recolour_strength))
                 .transpose()
                 .map_err(|e| Error::invalid(format!("--recolour: {e}")))?,
+            seen_from: Vec::new(),
+            export: self.export.export()?,
+            placement: self.export.placement(Origin::parse(&self.origin)?),
         };
         let (_, out) = mesh_model(&self.model, &self.out, &name, &opts, up)?;
+        if self.json {
+            super::print_json(&out);
+        }
         let r = &out.mesh;
+        let e = &out.export;
         println!(
-            "{}: {} vertices, {} triangles (grid {}x{}x{}, iso alpha {}, {} small pieces removed)",
+            "{}: {} vertices, {} triangles (full mesh {} triangles: grid {}x{}x{}, iso alpha {}, {} small pieces removed)",
             out.path.display(),
-            r.vertices,
+            e.vertices,
+            e.triangles,
             r.triangles,
             r.sample_dims[0],
             r.sample_dims[1],
@@ -93,9 +172,21 @@ impl MeshCmd {
             r.iso_alpha,
             r.pieces_removed
         );
-        if let Some(frame) = &out.frame {
-            println!("frame: {}", frame.why);
+        if let Some(a) = &e.atlas {
+            println!(
+                "texture: {0}x{0} px, {1} charts, {2:.0}% of texels used",
+                a.size,
+                a.charts,
+                100.0 * a.utilization
+            );
         }
+        if let Some(frame) = &out.frame {
+            println!(
+                "frame: {}; origin {:?}, units: {}",
+                frame.why, frame.origin, frame.units
+            );
+        }
+        println!("{:.1} s, peak memory {} MiB", out.seconds, out.peak_rss_mib);
         Ok(())
     }
 }

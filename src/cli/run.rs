@@ -51,6 +51,11 @@ pub struct ExtractCmd {
     /// Surface opacity per voxel for marching cubes (0..1).
     #[arg(long, default_value_t = FieldMeshOptions::default().iso_alpha)]
     pub iso: f32,
+    #[command(flatten)]
+    pub export: super::mesh::MeshExportArgs,
+    /// Each object's glTF origin (RUN/<object>/mesh.glb): base, centre or capture.
+    #[arg(long, default_value = "base")]
+    pub origin: String,
     /// Turntable frames per object.
     #[arg(long, default_value_t = TurntableOptions::default().frames)]
     pub frames: usize,
@@ -67,7 +72,7 @@ pub struct ExtractCmd {
 }
 
 impl ExtractCmd {
-    pub(super) fn options(&self) -> ExtractOptions {
+    pub(super) fn options(&self) -> Result<ExtractOptions> {
         let mut o = ExtractOptions {
             overwrite: self.overwrite,
             hold_out: self.hold_out.or(ExtractOptions::default().hold_out),
@@ -82,8 +87,12 @@ impl ExtractCmd {
         o.fit.appearance_lr = self.appearance.rate;
         o.mesh.resolution = self.resolution;
         o.mesh.iso_alpha = self.iso;
+        o.mesh.export = self.export.export()?;
+        o.mesh.placement = self
+            .export
+            .placement(objnerf::mesh::frame::Origin::parse(&self.origin)?);
         o.turntable.frames = self.frames.max(1);
-        o
+        Ok(o)
     }
 
     pub fn run(self, m: &ArgMatches) -> Result<()> {
@@ -94,7 +103,7 @@ impl ExtractCmd {
         let report = extract(
             &scene,
             &prompts,
-            &self.options(),
+            &self.options()?,
             &seg,
             &self.out,
             &Bars::default(),
@@ -126,10 +135,19 @@ fn print_summary(r: &ExtractReport) {
             o.train.run.final_psnr,
             o.model.display()
         );
+        let texture = o
+            .export
+            .atlas
+            .as_ref()
+            .map_or("vertex colours".to_string(), |a| {
+                format!("{0}x{0} px texture", a.size)
+            });
         println!(
-            "  mesh: {} vertices, {} triangles -> {}",
-            o.mesh.vertices,
+            "  mesh: {} triangles ({} in the full mesh.ply), {texture}, {:?}, origin {:?} -> {}",
+            o.export.triangles,
             o.mesh.triangles,
+            o.export.shading,
+            o.frame.origin,
             o.mesh_glb.display()
         );
         println!("  turntable: {}", o.turntable_gif.display());

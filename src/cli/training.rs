@@ -113,7 +113,7 @@ mod tests {
         let cli = Cli::try_parse_from(argv).map_err(|e| e.to_string())?;
         Ok(match cli.command {
             Command::Train(c) => c.time_budget(),
-            Command::Extract(c) => c.options().fit.time_budget,
+            Command::Extract(c) => c.options().map_err(|e| e.to_string())?.fit.time_budget,
             Command::Remove(c) => c.options().field.fit.time_budget,
             Command::Demo(c) => c.options().fit.time_budget,
             _ => unreachable!("not a training command"),
@@ -147,7 +147,7 @@ mod tests {
         let cli = Cli::try_parse_from(argv).map_err(|e| e.to_string())?;
         Ok(match cli.command {
             Command::Train(c) => c.appearance.rate,
-            Command::Extract(c) => c.options().fit.appearance_lr,
+            Command::Extract(c) => c.options().map_err(|e| e.to_string())?.fit.appearance_lr,
             Command::Remove(c) => c.options().field.fit.appearance_lr,
             _ => unreachable!("not a command that learns appearance"),
         })

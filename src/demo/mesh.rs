@@ -24,9 +24,8 @@ impl Tessellation {
                 .iter()
                 .map(|v| v.as_vec3().to_array())
                 .collect(),
-            normals: vec![],
-            colors: None,
             triangles: self.faces.clone(),
+            ..Default::default()
         };
         m.compute_normals();
         m

@@ -495,6 +495,13 @@ pub fn model_notes(
     report: &TrainReport,
 ) -> serde_json::Value {
     let (up, up_why) = scene.up();
+    // Where the training cameras stood: a mesh's colour is the field's seen from them.
+    let view_centres: Vec<[f64; 3]> = scene
+        .images
+        .iter()
+        .filter(|v| !opts.exclude_views.contains(&v.name))
+        .map(|v| v.pose.center().to_array())
+        .collect();
     serde_json::json!({
         "kind": kind,
         "downscale": opts.downscale,
@@ -506,6 +513,7 @@ pub fn model_notes(
         "depth": opts.depth,
         "depth_targets": report.depth_targets,
         "appearance": report.appearance,
+        "view_centres": view_centres,
     })
 }
 

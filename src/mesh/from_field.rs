@@ -7,14 +7,14 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
+use super::colour::{raw_at, surface_colour, view_centres};
 use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
-use super::frame::GltfFrame;
+use super::frame::{GltfFrame, Placement};
 use super::io::MeshFormat;
+use super::textured::{export_mesh, ExportOptions, ExportReport};
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
-use crate::field::colour_net::MAX_ACTIVATIONS;
-use crate::field::model::{Field, MAX_CHANNELS};
-use crate::field::sh::{sh_basis, SH_TERMS};
+use crate::field::model::Field;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -34,6 +34,14 @@ pub struct FieldMeshOptions {
     pub fill_cavities: bool,
     /// Recolour the vertex colours as `render-edit` recolours the field's radiance.
     pub recolour: Option<crate::edit::Recolour>,
+    /// The training cameras' centres (world): a surface point's colour is the mean of the
+    /// field's towards those on its outer side (empty: the view-independent colour; see
+    /// [`super::colour`]). [`mesh_model`] reads them from the model's notes.
+    pub seen_from: Vec<Vec3>,
+    /// Decimation, texture and material of the mesh written ([`export_mesh`]).
+    pub export: ExportOptions,
+    /// Origin and scale in the glTF (.glb, .obj).
+    pub placement: Placement,
 }
 
 impl Default for FieldMeshOptions {
@@ -44,6 +52,12 @@ impl Default for FieldMeshOptions {
             min_component: 0.05,
             fill_cavities: true,
             recolour: None,
+            seen_from: Vec::new(),
+            export: ExportOptions::default(),
+            placement: Placement {
+                origin: super::frame::Origin::Base,
+                ..Default::default()
+            },
         }
     }
 }
@@ -69,89 +83,6 @@ pub fn iso_raw(field: &Field, iso_alpha: f32) -> Result<f32> {
         )));
     }
     Ok(field.raw_for_alpha(iso_alpha, 1.0))
-}
-
-/// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
-fn raw_at(field: &Field, p: Vec3) -> f32 {
-    let g = field.to_grid(p);
-    let dims = field.grid.dims;
-    let inside = (0..3).all(|a| g[a] >= 0.0 && g[a] <= (dims[a] - 1) as f32);
-    if !inside {
-        return EMPTY;
-    }
-    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
-    if !field.occupied(b) {
-        return EMPTY;
-    }
-    let k = field.grid.corners_of(b, fr);
-    field.grid.interp_density(&k)
-}
-
-/// Colour at a world point seen along `dir` whose SH basis is `basis`, linear 0..1.
-fn color_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
-    let g = field.to_grid(p);
-    let dims = field.grid.dims;
-    let g = Vec3::new(
-        g.x.clamp(0.0, (dims[0] - 1) as f32),
-        g.y.clamp(0.0, (dims[1] - 1) as f32),
-        g.z.clamp(0.0, (dims[2] - 1) as f32),
-    );
-    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
-    let k = field.grid.corners_of(b, fr);
-    let mut feat = [0f32; MAX_CHANNELS];
-    let ch = field.grid.channels;
-    field.grid.interp_colour(&k, &mut feat[..ch - 1]);
-    let mut h = [0f32; MAX_ACTIVATIONS];
-    let refl = field.reflection_basis(&k, fr, dir);
-    field.shade(&feat, &refl, &field.shading(*basis), &mut h)
-}
-
-/// The basis a vertex's colour is read with: SH colour keeps its view-independent (DC) term
-/// only; a colour network is asked for the view straight at the surface (along `-n`).
-fn vertex_basis(field: &Field, n: Vec3) -> [f32; SH_TERMS] {
-    let mut basis = [0f32; SH_TERMS];
-    match field.net {
-        Some(_) => sh_basis(field.config.sh_degree, -n, &mut basis),
-        None => basis[0] = 0.282_094_8,
-    }
-    basis
-}
-
-/// Colour at a surface vertex: the DC colour composited along the inward normal over two voxels,
-/// as a camera looking straight at the surface would see it (the iso-surface itself sits where
-/// the field is only half opaque, and colour there is poorly constrained).
-fn vertex_color(field: &Field, p: Vec3, n: Vec3) -> [f32; 3] {
-    let step = 0.25 * field.voxel;
-    let delta = step / field.config.base_voxel;
-    let shift = field.shift();
-    let basis = vertex_basis(field, n);
-    let mut trans = 1.0f32;
-    let mut acc = [0.0f32; 3];
-    let mut wsum = 0.0f32;
-    for i in -2..8 {
-        let q = p - n * (i as f32 * step);
-        let raw = raw_at(field, q);
-        if raw <= EMPTY {
-            continue;
-        }
-        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
-        let w = trans * alpha;
-        if w > 0.0 {
-            let c = color_at(field, q, -n, &basis);
-            for k in 0..3 {
-                acc[k] += w * c[k];
-            }
-            wsum += w;
-        }
-        trans *= 1.0 - alpha;
-        if trans < 1e-3 {
-            break;
-        }
-    }
-    if wsum <= 1e-6 {
-        return color_at(field, p, -n, &basis);
-    }
-    acc.map(|a| (a / wsum).clamp(0.0, 1.0))
 }
 
 /// Cut `field` at `opts.iso_alpha` into a mesh in the field's world units, with normals and
@@ -235,7 +166,8 @@ pub fn mesh_field(
         .par_iter()
         .zip(&mesh.normals)
         .map(|(p, n)| {
-            let c = vertex_color(field, Vec3::from_array(*p), Vec3::from_array(*n));
+            let (p, n) = (Vec3::from_array(*p), Vec3::from_array(*n));
+            let c = surface_colour(field, p, n, 0.0, &opts.seen_from);
             recolour.map_or(c, |r| r.apply(c))
         })
         .collect();
@@ -256,15 +188,22 @@ pub fn mesh_field(
 #[derive(Clone, Debug, Serialize)]
 pub struct MeshOutput {
     pub path: PathBuf,
+    /// The full marching-cubes mesh.
     pub mesh: FieldMeshReport,
-    /// The capture-to-glTF frame (None: a .ply of a model that records no up direction).
+    /// From the full mesh to the one written: decimation, atlas, bake, material.
+    pub export: ExportReport,
+    /// The capture-to-glTF frame with origin and scale (None: a .ply of a model that records
+    /// no up direction).
     pub frame: Option<GltfFrame>,
     /// Bounds in the capture's world units (before the glTF frame change).
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
+    pub seconds: f64,
+    pub peak_rss_mib: u64,
 }
 
-/// Load a model, mesh it and write the mesh.
+/// Load a model, mesh it and write the mesh (textured for .glb unless told otherwise; PLY and
+/// OBJ carry vertex colours).
 pub fn mesh_model(
     model_path: &Path,
     out: &Path,
@@ -272,16 +211,32 @@ pub fn mesh_model(
     opts: &FieldMeshOptions,
     up: Option<DVec3>,
 ) -> Result<(Mesh, MeshOutput)> {
+    let t = std::time::Instant::now();
     let format = MeshFormat::of(out)?;
     let model = crate::field::io::load_field(model_path)?;
     // The fill uses up where it is known; a model with nothing to mesh says so before a missing
     // up does. PLY keeps the capture's frame: no up direction needed.
     let frame = GltfFrame::for_model(&model, up);
     let up = frame.as_ref().ok().map(|f| DVec3::from_array(f.up));
-    let (mesh, report) = mesh_field(&model.field, name, opts, up)
+    let mut opts = opts.clone();
+    if opts.seen_from.is_empty() {
+        opts.seen_from = view_centres(&model.notes);
+    }
+    if format != MeshFormat::Glb {
+        opts.export.texture = None;
+    }
+    let (full, report) = mesh_field(&model.field, name, &opts, up)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
+    let (mesh, export) = export_mesh(
+        &model.field,
+        &full,
+        &opts.export,
+        &opts.seen_from,
+        opts.recolour,
+    )
+    .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
     let frame = match format.needs_frame() {
-        true => Some(frame?),
+        true => Some(opts.placement.frame(&frame?, &mesh.positions)?),
         false => frame.ok(),
     };
     super::io::write_mesh(&mesh, frame.as_ref(), out)?;
@@ -291,9 +246,12 @@ pub fn mesh_model(
         MeshOutput {
             path: out.to_path_buf(),
             mesh: report,
+            export,
             frame,
             bounds_min: lo,
             bounds_max: hi,
+            seconds: t.elapsed().as_secs_f64(),
+            peak_rss_mib: crate::util::mem::peak_rss_mib(),
         },
     ))
 }

@@ -1,7 +1,9 @@
-//! glTF 2.0 binary (.glb) output: one mesh (POSITION, NORMAL, optional COLOR_0, u32 indices) on a
-//! named node, built as a `gltf_json::Root` and packed into the GLB container.
+//! glTF 2.0 binary (.glb) output: one mesh (POSITION, NORMAL, optional COLOR_0 or TEXCOORD_0 with
+//! its base-colour texture as an embedded PNG, u32 indices) on a named node, built as a
+//! `gltf_json::Root` and packed into the GLB container. The material is unlit
+//! (`KHR_materials_unlit`) or a rough non-metal, as the mesh's [`Shading`] says.
 
-use super::Mesh;
+use super::{Mesh, Shading};
 use crate::error::{Error, Result};
 use gltf_json as json;
 use json::validation::Checked::Valid;
@@ -141,32 +143,123 @@ impl GlbBuilder {
         })
     }
 
-    /// One mesh (positions, normals, optional colours, indices, a matte material) on a named
-    /// node.
+    /// A 2-vector vertex attribute (texture coordinates).
+    fn vec2s(&mut self, v: &[[f32; 2]]) -> json::Index<json::Accessor> {
+        let bytes: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&bytes, json::buffer::Target::ArrayBuffer);
+        self.accessor(
+            view,
+            v.len(),
+            json::accessor::Type::Vec2,
+            json::accessor::ComponentType::F32,
+            None,
+        )
+    }
+
+    /// `img` as a PNG in the binary chunk, with a trilinear, repeating sampler.
+    fn texture(
+        &mut self,
+        img: &image::RgbImage,
+        name: &str,
+    ) -> std::result::Result<json::Index<json::Texture>, String> {
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .map_err(|e| e.to_string())?;
+        pad_to_4(&mut self.bin, 0);
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(&png);
+        // Image data is not a vertex or index buffer: its view has no target.
+        let view = self.root.push(json::buffer::View {
+            buffer: self.buffer,
+            byte_length: USize64(png.len() as u64),
+            byte_offset: Some(USize64(offset as u64)),
+            byte_stride: None,
+            extensions: None,
+            extras: Default::default(),
+            name: None,
+            target: None,
+        });
+        let image = self.root.push(json::Image {
+            buffer_view: Some(view),
+            mime_type: Some(json::image::MimeType("image/png".into())),
+            name: Some(format!("{name}_base_colour")),
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+        let sampler = self.root.push(json::texture::Sampler {
+            mag_filter: Some(Valid(json::texture::MagFilter::Linear)),
+            min_filter: Some(Valid(json::texture::MinFilter::LinearMipmapLinear)),
+            ..Default::default()
+        });
+        Ok(self.root.push(json::Texture {
+            name: Some(format!("{name}_base_colour")),
+            sampler: Some(sampler),
+            source: image,
+            extensions: None,
+            extras: Default::default(),
+        }))
+    }
+
+    /// The mesh's material: its texture (if any) as base colour; unlit or a rough non-metal.
+    fn material(
+        &mut self,
+        mesh: &Mesh,
+        texture: Option<json::Index<json::Texture>>,
+    ) -> json::Index<json::Material> {
+        let unlit = mesh.shading == Shading::Unlit;
+        if unlit {
+            let ext = "KHR_materials_unlit".to_string();
+            if !self.root.extensions_used.contains(&ext) {
+                self.root.extensions_used.push(ext);
+            }
+        }
+        self.root.push(json::Material {
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                metallic_factor: json::material::StrengthFactor(0.0),
+                base_color_texture: texture.map(|index| json::texture::Info {
+                    index,
+                    tex_coord: 0,
+                    extensions: None,
+                    extras: Default::default(),
+                }),
+                ..Default::default()
+            },
+            name: Some(format!("{}_material", mesh.name)),
+            double_sided: false,
+            extensions: unlit.then_some(json::extensions::material::Material {
+                unlit: Some(json::extensions::material::Unlit {}),
+            }),
+            ..Default::default()
+        })
+    }
+
+    /// One mesh (positions, normals, colours or UVs with a texture, indices, its material) on a
+    /// named node.
     fn mesh_node(
         &mut self,
         mesh: &Mesh,
         extras: Option<Box<serde_json::value::RawValue>>,
-    ) -> json::Index<json::Node> {
+    ) -> std::result::Result<json::Index<json::Node>, String> {
         let mut attributes = std::collections::BTreeMap::new();
         let pos = self.vec3s(&mesh.positions, Some(mesh.bounds()));
         attributes.insert(Valid(json::mesh::Semantic::Positions), pos);
         let nrm = self.vec3s(&mesh.normals, None);
         attributes.insert(Valid(json::mesh::Semantic::Normals), nrm);
         if let Some(colors) = &mesh.colors {
-            let col = self.vec3s(colors, None);
+            // The field's colours are the photos' sRGB values; COLOR_0 is linear.
+            let linear: Vec<[f32; 3]> = colors.iter().map(|c| c.map(srgb_to_linear)).collect();
+            let col = self.vec3s(&linear, None);
             attributes.insert(Valid(json::mesh::Semantic::Colors(0)), col);
         }
+        let mut texture = None;
+        if let (Some(uvs), Some(img)) = (&mesh.uvs, &mesh.texture) {
+            let uv = self.vec2s(uvs);
+            attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), uv);
+            texture = Some(self.texture(img, &mesh.name)?);
+        }
         let indices = self.indices(&mesh.triangles);
-        let material = self.root.push(json::Material {
-            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-                metallic_factor: json::material::StrengthFactor(0.0),
-                ..Default::default()
-            },
-            name: Some(format!("{}_material", mesh.name)),
-            double_sided: false,
-            ..Default::default()
-        });
+        let material = self.material(mesh, texture);
         let gmesh = self.root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
@@ -182,12 +275,12 @@ impl GlbBuilder {
             }],
             weights: None,
         });
-        self.root.push(json::Node {
+        Ok(self.root.push(json::Node {
             mesh: Some(gmesh),
             name: Some(mesh.name.clone()),
             extras,
             ..Default::default()
-        })
+        }))
     }
 
     /// The scene of `nodes`, packed as a GLB container.
@@ -221,6 +314,16 @@ impl GlbBuilder {
     }
 }
 
+/// sRGB-encoded 0..1 to linear.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 /// GLB chunks are 4-byte aligned.
 fn pad_to_4(v: &mut Vec<u8>, fill: u8) {
     while v.len() % 4 != 0 {
@@ -240,6 +343,6 @@ fn glb_bytes(
     let nodes = meshes
         .iter()
         .map(|m| b.mesh_node(m, node_extras.clone()))
-        .collect();
+        .collect::<std::result::Result<_, _>>()?;
     b.finish(nodes)
 }

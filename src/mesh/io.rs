@@ -93,9 +93,8 @@ pub fn read_ply(path: &Path) -> Result<Mesh> {
             .iter()
             .map(|(p, _)| p.as_vec3().to_array())
             .collect(),
-        normals: vec![],
-        colors: None,
         triangles: data.triangles,
+        ..Default::default()
     };
     m.compute_normals();
     Ok(m)

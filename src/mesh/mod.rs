@@ -1,7 +1,11 @@
 //! Meshes out of object fields: marching cubes, cleanup (welded by construction, small pieces
 //! removed, normals), and writers for glTF binary, PLY and OBJ.
 
+pub mod atlas;
+pub mod bake;
 pub mod chamfer;
+pub mod colour;
+pub mod decimate;
 pub mod fill;
 pub mod frame;
 pub mod from_field;
@@ -9,19 +13,41 @@ pub mod gltf;
 pub mod io;
 pub mod marching;
 pub mod mesh_checks;
+pub mod raster;
 mod tables;
+pub mod textured;
 
 use glam::{DMat4, DVec3};
 
-/// A triangle mesh in world units with per-vertex normals and optional linear RGB colours.
+/// A triangle mesh in world units with per-vertex normals, optional per-vertex colours and an
+/// optional base-colour texture.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
     pub name: String,
     pub positions: Vec<[f32; 3]>,
     pub normals: Vec<[f32; 3]>,
-    /// Linear RGB in 0..1, one per vertex.
+    /// RGB in 0..1, one per vertex: the field's colour, which is the photos' (sRGB-encoded)
+    /// values (the glTF writer decodes them to the linear COLOR_0 glTF asks for).
     pub colors: Option<Vec<[f32; 3]>>,
+    /// Texture coordinates, one per vertex, glTF's convention ((0, 0): the image's top-left).
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// The base colour the `uvs` index, 8-bit sRGB.
+    pub texture: Option<std::sync::Arc<image::RgbImage>>,
+    /// How a viewer shades the colour.
+    pub shading: Shading,
     pub triangles: Vec<[u32; 3]>,
+}
+
+/// The material a mesh is written with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Shading {
+    /// `KHR_materials_unlit`: the colour shown as captured. A radiance field's colour already
+    /// holds the capture's lighting; lighting it again darkens and shades it twice.
+    #[default]
+    Unlit,
+    /// glTF's metallic-roughness material (non-metal, rough), lit by the viewer's lights.
+    Pbr,
 }
 
 /// The change of frame from a Z-up capture world (nerfstudio, Blender, NeRF-synthetic, the demo
@@ -47,9 +73,8 @@ impl Mesh {
         let mut m = Mesh {
             name: name.to_string(),
             positions,
-            normals: vec![],
-            colors: None,
             triangles: grid.triangles,
+            ..Default::default()
         };
         m.compute_normals();
         m
@@ -152,7 +177,8 @@ impl Mesh {
         removed
     }
 
-    fn drop_unused_vertices(&mut self) {
+    /// Remove vertices no triangle uses (renumbering the triangles).
+    pub(crate) fn drop_unused_vertices(&mut self) {
         let mut remap = vec![u32::MAX; self.positions.len()];
         let mut next = 0u32;
         for t in &self.triangles {
@@ -173,8 +199,12 @@ impl Mesh {
             }
         ];
         let mut col = self.colors.as_ref().map(|_| vec![[0f32; 3]; next as usize]);
+        let mut uvs = self.uvs.as_ref().map(|_| vec![[0f32; 2]; next as usize]);
         for (old, &new) in remap.iter().enumerate() {
             if new != u32::MAX {
+                if let (Some(u), Some(src)) = (uvs.as_mut(), self.uvs.as_ref()) {
+                    u[new as usize] = src[old];
+                }
                 pos[new as usize] = self.positions[old];
                 if !nrm.is_empty() {
                     nrm[new as usize] = self.normals[old];
@@ -190,6 +220,7 @@ impl Mesh {
         self.positions = pos;
         self.normals = nrm;
         self.colors = col;
+        self.uvs = uvs;
     }
 
     /// Axis-aligned bounds (min, max); zeros for an empty mesh.

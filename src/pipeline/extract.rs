@@ -7,11 +7,12 @@
 //! Layout of the run folder (written under a temporary name, renamed into place at the end):
 //! ```text
 //! RUN/report.json                 everything below, summarised
-//! RUN/mesh.glb                    every object, one node each (+Y up)
+//! RUN/mesh.glb                    every object, one node each (+Y up, the capture's origin)
 //! RUN/segment/                    `objnerf segment`'s output: masks/<object>/, <object>_points.ply,
 //!                                 contact_sheet_<object>.png, report.json
 //! RUN/<object>/model.objf         the object's field
-//! RUN/<object>/mesh.glb, mesh.ply the object alone (.ply in the capture's frame)
+//! RUN/<object>/mesh.glb          the object alone: decimated, textured, unlit, origin at its base
+//! RUN/<object>/mesh.ply          the full marching-cubes mesh, vertex colours, capture's frame
 //! RUN/<object>/turntable/         frame_NNN.png, and turntable.gif beside it
 //! ```
 
@@ -20,8 +21,10 @@ use crate::field::holdout::HoldOut;
 use crate::field::MaskSource;
 use crate::fit::object_checks::HeldOutCheck;
 use crate::fit::{fit_object, model_notes, FieldKind, FitOptions, TrainReport};
-use crate::mesh::frame::GltfFrame;
+use crate::mesh::colour::view_centres;
+use crate::mesh::frame::{GltfFrame, Origin, Placement};
 use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
+use crate::mesh::textured::{export_mesh, ExportReport};
 use crate::mesh::{gltf::write_glbs, io::write_mesh, Mesh};
 use crate::pipeline::extract_checks::{check_views, field_warnings, mesh_warnings};
 use crate::render::{write_turntable, TurntableOptions};
@@ -95,7 +98,12 @@ pub struct ObjectReport {
     pub train_seconds: f64,
     /// The field measured on the held-out views (the self-check's figures).
     pub held_out_check: HeldOutCheck,
+    /// The full marching-cubes mesh (`mesh.ply`).
     pub mesh: FieldMeshReport,
+    /// The mesh in `mesh.glb`: decimation, atlas, bake, material.
+    pub export: ExportReport,
+    /// The object's own glTF frame (`mesh.glb`): origin and scale.
+    pub frame: GltfFrame,
     pub mesh_seconds: f64,
     pub render_seconds: f64,
     pub model: PathBuf,
@@ -159,13 +167,20 @@ pub fn extract(
         progress,
     )?;
     let t_segment = t0.elapsed().as_secs_f64();
-    let frame = GltfFrame::for_scene(scene);
+    // The run's frame: the capture's origin (objects keep their places), at the scale asked for.
+    let placement = Placement {
+        origin: Origin::Capture,
+        height_metres: None,
+        ..opts.mesh.placement
+    };
+    let capture_frame = GltfFrame::for_scene(scene);
+    let frame = placement.frame(&capture_frame, &[])?;
 
     let mut objects = Vec::new();
     let mut meshes: Vec<Mesh> = Vec::new();
     let mut warnings = seg_report.warnings.clone();
     for obj in &segs {
-        let (report, mesh, w) = extract_object(scene, obj, opts, &frame, &run, progress)?;
+        let (report, mesh, w) = extract_object(scene, obj, opts, &capture_frame, &run, progress)?;
         objects.push(report);
         meshes.push(mesh);
         warnings.extend(w);
@@ -253,6 +268,10 @@ fn extract_object(
     progress.end();
     let model = dir.join("model.objf");
     let notes = model_notes(FieldKind::Object, scene, &fit, &fitted.report);
+    let mesh_opts = FieldMeshOptions {
+        seen_from: view_centres(&notes),
+        ..opts.mesh.clone()
+    };
     crate::field::io::save(
         &model,
         &fitted.trainer.parts(crate::field::io::IDENTITY, notes),
@@ -271,11 +290,20 @@ fn extract_object(
 
     let t = Instant::now();
     let up = DVec3::from_array(frame.up);
-    let (mesh, mesh_report) = mesh_field(field, &obj.name, &opts.mesh, Some(up))
+    let (full, mesh_report) = mesh_field(field, &obj.name, &mesh_opts, Some(up))
         .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
-    write_mesh(&mesh, Some(frame), &dir.join("mesh.glb"))?;
-    write_mesh(&mesh, Some(frame), &dir.join("mesh.ply"))?;
-    warnings.extend(mesh_warnings(&obj.name, &mesh, field));
+    let (mesh, export) = export_mesh(
+        field,
+        &full,
+        &mesh_opts.export,
+        &mesh_opts.seen_from,
+        mesh_opts.recolour,
+    )
+    .map_err(|e| Error::invalid(format!("'{}': {e}", obj.name)))?;
+    let object_frame = opts.mesh.placement.frame(frame, &mesh.positions)?;
+    write_mesh(&mesh, Some(&object_frame), &dir.join("mesh.glb"))?;
+    write_mesh(&full, Some(frame), &dir.join("mesh.ply"))?;
+    warnings.extend(mesh_warnings(&obj.name, &full, field));
     let mesh_seconds = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -306,6 +334,8 @@ fn extract_object(
         train_seconds,
         held_out_check,
         mesh: mesh_report,
+        export,
+        frame: object_frame,
         mesh_seconds,
         render_seconds: t.elapsed().as_secs_f64(),
         model: run.final_path(&model),

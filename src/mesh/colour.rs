@@ -1,0 +1,206 @@
+//! The colour of a surface point of a field, for vertex colours and baked textures.
+//!
+//! A radiance field's colour depends on the direction it is seen from; a mesh has one colour per
+//! point. That one colour is the mean, over the (at most eight) training cameras most head-on to
+//! the point on its outer side, of what each camera's ray through the point shows: the field's
+//! colour in that direction composited along that ray from just before the point to two voxels
+//! past it, so a point of a decimated mesh a little off the field's surface still shows what the
+//! cameras saw there. The mean is weighted by the cosine of each camera's angle to the normal (a
+//! head-on view sees the point sharpest). Occlusion is not tested: for a direction no camera
+//! saw, the field's low-order SH extrapolates smoothly. Without the training cameras (models
+//! written before they were recorded), or where no camera's ray meets the surface, an SH field
+//! gives its DC term (the mean over all directions) composited along the inward normal; a field
+//! with a colour network is always asked for the view along the normal (its per-ray network is
+//! too costly for every camera at every texel).
+
+use super::fill::EMPTY;
+use crate::field::activation::sigmoid;
+use crate::field::colour_net::MAX_ACTIVATIONS;
+use crate::field::model::{Field, MAX_CHANNELS};
+use crate::field::sh::{sh_basis, SH_TERMS};
+use glam::Vec3;
+
+/// Cameras a surface point's colour is averaged over, the most head-on first.
+const MAX_CAMERAS: usize = 8;
+
+/// The training cameras' centres in a model's notes (`view_centres`; empty when absent).
+pub fn view_centres(notes: &serde_json::Value) -> Vec<Vec3> {
+    notes["view_centres"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|c| {
+            let v: Vec<f32> = c
+                .as_array()?
+                .iter()
+                .filter_map(|x| x.as_f64().map(|x| x as f32))
+                .collect();
+            (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| Vec3::new(v[0], v[1], v[2]))
+        })
+        .collect()
+}
+
+/// The field's raw density at a world point, EMPTY where occupancy says the renderer skips it.
+pub(crate) fn raw_at(field: &Field, p: Vec3) -> f32 {
+    let g = field.to_grid(p);
+    let dims = field.grid.dims;
+    let inside = (0..3).all(|a| g[a] >= 0.0 && g[a] <= (dims[a] - 1) as f32);
+    if !inside {
+        return EMPTY;
+    }
+    let (b, fr) = field.grid.locate([g.x, g.y, g.z]);
+    if !field.occupied(b) {
+        return EMPTY;
+    }
+    let k = field.grid.corners_of(b, fr);
+    field.grid.interp_density(&k)
+}
+
+/// The grid corners and colour channels at a world point (clamped into the grid).
+fn channels_at(field: &Field, p: Vec3) -> [f32; MAX_CHANNELS] {
+    let g = field.to_grid(p);
+    let dims = field.grid.dims;
+    let g = [0, 1, 2].map(|a| g[a].clamp(0.0, (dims[a] - 1) as f32));
+    let (b, fr) = field.grid.locate(g);
+    let k = field.grid.corners_of(b, fr);
+    let mut feat = [0f32; MAX_CHANNELS];
+    let ch = field.grid.channels;
+    field.grid.interp_colour(&k, &mut feat[..ch - 1]);
+    feat
+}
+
+/// Colour at a world point seen along `dir` whose SH basis is `basis`, 0..1.
+fn colour_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
+    let g = field.to_grid(p);
+    let dims = field.grid.dims;
+    let g = [0, 1, 2].map(|a| g[a].clamp(0.0, (dims[a] - 1) as f32));
+    let (b, fr) = field.grid.locate(g);
+    let k = field.grid.corners_of(b, fr);
+    let feat = channels_at(field, p);
+    let mut h = [0f32; MAX_ACTIVATIONS];
+    let refl = field.reflection_basis(&k, fr, dir);
+    field.shade(&feat, &refl, &field.shading(*basis), &mut h)
+}
+
+/// Samples along the inward normal with their compositing weights (at most 64 + 2·64).
+fn surface_samples(field: &Field, p: Vec3, n: Vec3, slack: f32) -> Vec<(Vec3, f32)> {
+    let step = 0.25 * field.voxel;
+    let delta = step / field.config.base_voxel;
+    let shift = field.shift();
+    let mut trans = 1.0f32;
+    let mut out = Vec::with_capacity(16);
+    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
+    for i in -2 - extra..8 + extra {
+        let q = p - n * (i as f32 * step);
+        let raw = raw_at(field, q);
+        if raw <= EMPTY {
+            continue;
+        }
+        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
+        let w = trans * alpha;
+        if w > 0.0 {
+            out.push((q, w));
+        }
+        trans *= 1.0 - alpha;
+        if trans < 1e-3 {
+            break;
+        }
+    }
+    out
+}
+
+/// Colour at a surface point `p` with normal `n` (see the module's notes); `slack` (world units)
+/// widens the march both ways for a point off the iso-surface (a decimated mesh's); `centres`:
+/// the training cameras.
+pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Vec3]) -> [f32; 3] {
+    let samples = surface_samples(field, p, n, slack);
+    let mut facing: Vec<(Vec3, f32)> = centres
+        .iter()
+        .filter_map(|c| {
+            let to_cam = (*c - p).normalize_or_zero();
+            let cos = to_cam.dot(n);
+            (cos > 0.05).then_some((-to_cam, cos))
+        })
+        .collect();
+    // The most head-on cameras only: they see the point sharpest, and the cost stays bounded.
+    facing.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+    facing.truncate(MAX_CAMERAS);
+    if field.net.is_some() || facing.is_empty() {
+        let mut basis = [0f32; SH_TERMS];
+        match field.net {
+            Some(_) => sh_basis(field.config.sh_degree, -n, &mut basis),
+            None => basis[0] = 0.282_094_8,
+        }
+        return composite(&samples, |q| colour_at(field, q, -n, &basis))
+            .unwrap_or_else(|| colour_at(field, p, -n, &basis));
+    }
+    // SH colour: what each camera's ray through the point shows (so a mesh a little off the
+    // field's surface still shows what the cameras saw there), weighted by the cosine.
+    let mut acc = [0f32; 3];
+    let mut csum = 0f32;
+    for (dir, cos) in &facing {
+        let Some(c) = along_ray(field, p, *dir, slack / cos.max(0.25)) else {
+            continue;
+        };
+        (0..3).for_each(|k| acc[k] += cos * c[k]);
+        csum += cos;
+    }
+    if csum <= 0.0 {
+        let mut basis = [0f32; SH_TERMS];
+        basis[0] = 0.282_094_8;
+        return composite(&samples, |q| colour_at(field, q, -n, &basis))
+            .unwrap_or_else(|| colour_at(field, p, -n, &basis));
+    }
+    acc.map(|a| (a / csum).clamp(0.0, 1.0))
+}
+
+/// The SH colour composited along the ray of direction `dir` through `p`, from half a voxel (and
+/// `slack`) before it to two voxels (and `slack`) past it; None where that ray meets nothing.
+fn along_ray(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Option<[f32; 3]> {
+    let step = 0.25 * field.voxel;
+    let delta = step / field.config.base_voxel;
+    let shift = field.shift();
+    let k = field.sh_k();
+    let mut basis = [0f32; SH_TERMS];
+    sh_basis(field.config.sh_degree, dir, &mut basis);
+    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
+    let mut trans = 1.0f32;
+    let mut acc = [0f32; 3];
+    let mut wsum = 0f32;
+    for i in -2 - extra..8 + extra {
+        let q = p + dir * (i as f32 * step);
+        let raw = raw_at(field, q);
+        if raw <= EMPTY {
+            continue;
+        }
+        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
+        let w = trans * alpha;
+        if w > 0.0 {
+            let feat = channels_at(field, q);
+            for (c, a) in acc.iter_mut().enumerate() {
+                let coef = &feat[c * k..(c + 1) * k];
+                *a += w * sigmoid(coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum());
+            }
+            wsum += w;
+        }
+        trans *= 1.0 - alpha;
+        if trans < 1e-3 {
+            break;
+        }
+    }
+    (wsum > 0.2).then(|| acc.map(|a| a / wsum))
+}
+
+/// The weighted mean of `colour` over `samples` (None: no weight).
+fn composite(samples: &[(Vec3, f32)], colour: impl Fn(Vec3) -> [f32; 3]) -> Option<[f32; 3]> {
+    let wsum: f32 = samples.iter().map(|s| s.1).sum();
+    if wsum <= 1e-6 {
+        return None;
+    }
+    let mut acc = [0f32; 3];
+    for (q, w) in samples {
+        let c = colour(*q);
+        (0..3).for_each(|k| acc[k] += w * c[k]);
+    }
+    Some(acc.map(|a| (a / wsum).clamp(0.0, 1.0)))
+}

@@ -1,0 +1,174 @@
+//! A small z-buffer rasteriser for meshes seen by a capture's cameras, to score an exported mesh
+//! against the photos: each pixel centre takes the colour of the nearest triangle, perspective-
+//! correct, from its vertex colours or its texture (bilinear), with no lighting (what an unlit
+//! material shows).
+
+use super::Mesh;
+use crate::field::{RayCamera, View};
+use glam::{Vec2, Vec3};
+
+/// The mesh (in the camera's world frame) drawn into `cam`'s image: per pixel the colour in 0..1
+/// (the photos' sRGB values), None where no triangle covers the pixel centre.
+pub fn render_mesh(mesh: &Mesh, cam: &RayCamera) -> Vec<Option<[f32; 3]>> {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut inv_z = vec![0f32; w * h];
+    let mut out = vec![None; w * h];
+    let centre = cam.center();
+    let forward = cam.pose.camera_to_world_dir(glam::DVec3::Z).as_vec3();
+    // Screen position and 1/depth per vertex (None: behind the camera).
+    let proj: Vec<Option<(Vec2, f32)>> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let p = Vec3::from(*p);
+            let z = (p - centre).dot(forward);
+            cam.project(p)
+                .filter(|_| z > 1e-6)
+                .map(|(x, y)| (Vec2::new(x, y), 1.0 / z))
+        })
+        .collect();
+    for t in &mesh.triangles {
+        let Some([a, b, c]) = t
+            .iter()
+            .map(|&i| proj[i as usize])
+            .collect::<Option<Vec<_>>>()
+            .map(|v| [v[0], v[1], v[2]])
+        else {
+            continue;
+        };
+        let area = (b.0 - a.0).perp_dot(c.0 - a.0);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        let lo = a.0.min(b.0).min(c.0);
+        let hi = a.0.max(b.0).max(c.0);
+        let x0 = (lo.x - 0.5).ceil().max(0.0) as i64;
+        let y0 = (lo.y - 0.5).ceil().max(0.0) as i64;
+        let x1 = ((hi.x - 0.5).floor() as i64).min(w as i64 - 1);
+        let y1 = ((hi.y - 0.5).floor() as i64).min(h as i64 - 1);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let l0 = (b.0 - q).perp_dot(c.0 - q) / area;
+                let l1 = (c.0 - q).perp_dot(a.0 - q) / area;
+                let l2 = 1.0 - l0 - l1;
+                if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                    continue;
+                }
+                let iz = l0 * a.1 + l1 * b.1 + l2 * c.1;
+                let i = x as usize + w * y as usize;
+                if iz <= inv_z[i] {
+                    continue;
+                }
+                inv_z[i] = iz;
+                // Perspective-correct weights.
+                let pw = [l0 * a.1 / iz, l1 * b.1 / iz, l2 * c.1 / iz];
+                out[i] = Some(shade(mesh, t, pw));
+            }
+        }
+    }
+    out
+}
+
+/// The colour at barycentric `w` of triangle `t`: texture, else vertex colours, else grey.
+fn shade(mesh: &Mesh, t: &[u32; 3], w: [f32; 3]) -> [f32; 3] {
+    if let (Some(uvs), Some(img)) = (&mesh.uvs, &mesh.texture) {
+        let uv = t.iter().zip(w).fold(Vec2::ZERO, |acc, (&i, wi)| {
+            acc + Vec2::from(uvs[i as usize]) * wi
+        });
+        return bilinear(img, uv);
+    }
+    if let Some(cols) = &mesh.colors {
+        let mut c = [0f32; 3];
+        for (&i, wi) in t.iter().zip(w) {
+            (0..3).for_each(|k| c[k] += cols[i as usize][k] * wi);
+        }
+        return c;
+    }
+    [0.5; 3]
+}
+
+/// Bilinear sample at `uv` (glTF convention), clamped to the edge, 0..1.
+fn bilinear(img: &image::RgbImage, uv: Vec2) -> [f32; 3] {
+    let (w, h) = (img.width() as f32, img.height() as f32);
+    let x = (uv.x * w - 0.5).clamp(0.0, w - 1.0);
+    let y = (uv.y * h - 0.5).clamp(0.0, h - 1.0);
+    let (x0, y0) = (x.floor() as u32, y.floor() as u32);
+    let (x1, y1) = (
+        (x0 + 1).min(img.width() - 1),
+        (y0 + 1).min(img.height() - 1),
+    );
+    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+    let px = |x, y| img.get_pixel(x, y).0.map(|v| v as f32 / 255.0);
+    let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
+    [0, 1, 2].map(|k| {
+        (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
+    })
+}
+
+/// Squared error summed over the pixels inside `view`'s mask (fully opaque) and their count,
+/// the mesh drawn over white (a hole costs what white against the photo costs).
+pub fn masked_squared_error(mesh: &Mesh, view: &View) -> (f64, usize) {
+    let img = render_mesh(mesh, &view.cam);
+    let mut se = 0f64;
+    let mut n = 0usize;
+    for (px, target) in img.iter().zip(&view.rgba) {
+        if target[3] != 255 {
+            continue;
+        }
+        let c = px.unwrap_or([1.0; 3]);
+        for k in 0..3 {
+            let d = c[k].clamp(0.0, 1.0) as f64 - target[k] as f64 / 255.0;
+            se += d * d;
+        }
+        n += 1;
+    }
+    (se, n)
+}
+
+/// PSNR (dB) of the mesh inside the views' masks, over all their pixels together.
+pub fn masked_psnr(mesh: &Mesh, views: &[View]) -> f64 {
+    let (se, n) = views
+        .iter()
+        .map(|v| masked_squared_error(mesh, v))
+        .fold((0.0, 0), |(s, n), (a, b)| (s + a, n + b));
+    let mse = se / (3 * n.max(1)) as f64;
+    -10.0 * mse.max(1e-12).log10()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Camera, Pose};
+    use glam::DVec3;
+
+    #[test]
+    fn a_quad_in_front_fills_its_pixels_with_its_texture() {
+        // A 2x2 quad at z = 0 seen from z = 4 looking down: covers the middle of the image.
+        let mesh = Mesh {
+            positions: vec![
+                [-1.0, -1.0, 0.0],
+                [1.0, -1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1.0, 1.0, 0.0],
+            ],
+            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+            texture: Some(std::sync::Arc::new(image::RgbImage::from_pixel(
+                4,
+                4,
+                image::Rgb([255, 0, 0]),
+            ))),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        let cam = Camera::pinhole(64, 64, 64.0, 64.0, 32.0, 32.0);
+        let pose = Pose::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, DVec3::Y);
+        let rc = RayCamera::new("v".into(), cam, pose);
+        let img = render_mesh(&mesh, &rc);
+        // Half-width 1 at distance 4 with f = 64: 16 px either side of the centre.
+        let covered = img.iter().filter(|p| p.is_some()).count();
+        assert!((covered as i64 - 32 * 32).abs() < 70, "{covered}");
+        assert_eq!(img[32 + 64 * 32], Some([1.0, 0.0, 0.0]));
+        assert_eq!(img[2 + 64 * 2], None);
+    }
+}
