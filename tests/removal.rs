@@ -101,6 +101,25 @@ fn llff_poses_alone_train_a_scene_field() {
     assert_eq!(report.run.steps, 20);
 }
 
+/// A scene field asked for a colour network (`--colour-net N` with `--scene-field`) is coloured
+/// by one of N features and trains; without the ask it takes SH colour.
+#[test]
+fn a_scene_field_takes_a_colour_network_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let ring = Scene::load(&demo(dir.path(), DemoLayout::Ring, 6)).unwrap();
+    for features in [0, 4] {
+        let mut opts = objnerf::fit::SceneFitOptions::default();
+        opts.fit.downscale = 4;
+        opts.fit.steps = 20;
+        opts.fit.setup.scene_net_features = features;
+        let mut fit = objnerf::fit::SceneFit::new(&ring, &opts).unwrap();
+        let stats = fit.train(&opts.fit.stop_rule(), &mut |_| {});
+        assert_eq!(stats.steps, 20);
+        let net = fit.finish().trainer.field.net;
+        assert_eq!(net.map_or(0, |n| n.features), features);
+    }
+}
+
 /// `truth/removed/mug` is the photo wherever the mug is not seen, and differs where it is;
 /// the pair folders exist.
 #[test]

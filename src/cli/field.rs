@@ -59,9 +59,11 @@ pub struct TrainCmd {
     /// hidden units, or the large model's 12 x 64 on a long run: --large-model-passes; the view
     /// direction enters as its SH basis to --colour-net-sh-degree) when
     /// the object has at least --colour-net-min-views training views, SH coefficients otherwise
-    /// (0: SH always). Object fields only (examples/results/field.md, "Colour by view count").
-    #[arg(long, default_value_t = SetupConfig::default().net_features)]
-    colour_net: usize,
+    /// (0: SH always; default 8; examples/results/field.md, "Colour by view count"). A scene
+    /// field (--scene-field) takes SH colour unless this is given (a network of that many
+    /// features whatever its view count; examples/results/scene_field.md).
+    #[arg(long)]
+    colour_net: Option<usize>,
     /// Fewer training views than this: SH colour (a network's view dependence does not hold
     /// between few views: the demo sphere, 30 views, -0.9 dB held out; lego, 100, +0.6).
     #[arg(long, default_value_t = SetupConfig::default().net_min_views)]
@@ -115,7 +117,10 @@ impl TrainCmd {
             whole_budget: self.steps.is_none(),
             setup: SetupConfig {
                 sh_degree: self.sh_degree.min(2),
-                net_features: self.colour_net,
+                net_features: self
+                    .colour_net
+                    .unwrap_or(SetupConfig::default().net_features),
+                scene_net_features: self.colour_net.unwrap_or(0),
                 net_min_views: self.colour_net_min_views,
                 net_sh_degree: self.colour_net_sh_degree,
                 large_model_passes: self.large_model_passes,
