@@ -32,7 +32,7 @@ pub fn write_ply(mesh: &Mesh, path: &Path) -> Result<()> {
                 w.write_all(&v.to_le_bytes())?;
             }
             if let Some(c) = &mesh.colors {
-                w.write_all(&c[i].map(to_srgb8))?;
+                w.write_all(&c[i].map(to_u8))?;
             }
         }
         for t in &mesh.triangles {
@@ -69,15 +69,10 @@ pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<()> {
     })
 }
 
-/// Linear 0..1 to 8-bit sRGB.
-pub fn to_srgb8(c: f32) -> u8 {
-    let c = c.clamp(0.0, 1.0);
-    let s = if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5) as u8
+/// A colour channel in 0..1 as a byte. The mesh's colours are already sRGB-encoded (the
+/// photos' values, [`Mesh::colors`]): encoding them again washed every PLY out.
+fn to_u8(c: f32) -> u8 {
+    (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
 /// Read a triangle mesh from a PLY file (positions and faces; normals recomputed).
@@ -153,5 +148,33 @@ pub fn write_mesh(mesh: &Mesh, frame: Option<&GltfFrame>, path: &Path) -> Result
     match format {
         MeshFormat::Glb => super::gltf::write_glb(&turned, path, Some(frame.extras())),
         _ => write_obj(&turned, path),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ply_colours_are_written_as_the_mesh_holds_them() {
+        let mesh = Mesh {
+            name: "t".into(),
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            normals: vec![[0.0, 0.0, 1.0]; 3],
+            colors: Some(vec![[0.5, 0.0, 1.0]; 3]),
+            triangles: vec![[0, 1, 2]],
+            ..Default::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.ply");
+        write_ply(&mesh, &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let body = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap()
+            + 11;
+        // The first vertex: 3 floats of position, 3 of normal, then its colour.
+        assert_eq!(bytes[body + 24..body + 27], [128, 0, 255]);
     }
 }
