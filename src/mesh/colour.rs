@@ -14,7 +14,6 @@
 //! too costly for every camera at every texel).
 
 use super::fill::EMPTY;
-use crate::field::activation::sigmoid;
 use crate::field::colour_net::MAX_ACTIVATIONS;
 use crate::field::model::{Field, MAX_CHANNELS};
 use crate::field::sh::{sh_basis, SH_TERMS};
@@ -56,8 +55,8 @@ pub(crate) fn raw_at(field: &Field, p: Vec3) -> f32 {
     field.grid.interp_density(&k)
 }
 
-/// The grid corners and colour channels at a world point (clamped into the grid).
-fn channels_at(field: &Field, p: Vec3) -> [f32; MAX_CHANNELS] {
+/// Colour at a world point seen along `dir` whose SH basis is `basis`, 0..1.
+fn colour_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
     let g = field.to_grid(p);
     let dims = field.grid.dims;
     let g = [0, 1, 2].map(|a| g[a].clamp(0.0, (dims[a] - 1) as f32));
@@ -66,24 +65,14 @@ fn channels_at(field: &Field, p: Vec3) -> [f32; MAX_CHANNELS] {
     let mut feat = [0f32; MAX_CHANNELS];
     let ch = field.grid.channels;
     field.grid.interp_colour(&k, &mut feat[..ch - 1]);
-    feat
-}
-
-/// Colour at a world point seen along `dir` whose SH basis is `basis`, 0..1.
-fn colour_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
-    let g = field.to_grid(p);
-    let dims = field.grid.dims;
-    let g = [0, 1, 2].map(|a| g[a].clamp(0.0, (dims[a] - 1) as f32));
-    let (b, fr) = field.grid.locate(g);
-    let k = field.grid.corners_of(b, fr);
-    let feat = channels_at(field, p);
     let mut h = [0f32; MAX_ACTIVATIONS];
     let refl = field.reflection_basis(&k, fr, dir);
     field.shade(&feat, &refl, &field.shading(*basis), &mut h)
 }
 
-/// Samples along the inward normal with their compositing weights (at most 64 + 2·64).
-fn surface_samples(field: &Field, p: Vec3, n: Vec3, slack: f32) -> Vec<(Vec3, f32)> {
+/// Samples with their compositing weights along `dir` through `p`, from half a voxel (and
+/// `slack`) before it to two voxels (and `slack`) past it (at most 64 + 2·64).
+fn samples_along(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Vec<(Vec3, f32)> {
     let step = 0.25 * field.voxel;
     let delta = step / field.config.base_voxel;
     let shift = field.shift();
@@ -91,7 +80,7 @@ fn surface_samples(field: &Field, p: Vec3, n: Vec3, slack: f32) -> Vec<(Vec3, f3
     let mut out = Vec::with_capacity(16);
     let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
     for i in -2 - extra..8 + extra {
-        let q = p - n * (i as f32 * step);
+        let q = p + dir * (i as f32 * step);
         let raw = raw_at(field, q);
         if raw <= EMPTY {
             continue;
@@ -113,7 +102,8 @@ fn surface_samples(field: &Field, p: Vec3, n: Vec3, slack: f32) -> Vec<(Vec3, f3
 /// widens the march both ways for a point off the iso-surface (a decimated mesh's); `centres`:
 /// the training cameras.
 pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Vec3]) -> [f32; 3] {
-    let samples = surface_samples(field, p, n, slack);
+    // Along the inward normal.
+    let samples = samples_along(field, p, -n, slack);
     let mut facing: Vec<(Vec3, f32)> = centres
         .iter()
         .filter_map(|c| {
@@ -154,41 +144,16 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Ve
     acc.map(|a| (a / csum).clamp(0.0, 1.0))
 }
 
-/// The SH colour composited along the ray of direction `dir` through `p`, from half a voxel (and
-/// `slack`) before it to two voxels (and `slack`) past it; None where that ray meets nothing.
+/// The SH colour composited along the ray of direction `dir` through `p` ([`samples_along`]);
+/// None where that ray meets too little.
 fn along_ray(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Option<[f32; 3]> {
-    let step = 0.25 * field.voxel;
-    let delta = step / field.config.base_voxel;
-    let shift = field.shift();
-    let k = field.sh_k();
+    let samples = samples_along(field, p, dir, slack);
+    if samples.iter().map(|s| s.1).sum::<f32>() <= 0.2 {
+        return None;
+    }
     let mut basis = [0f32; SH_TERMS];
     sh_basis(field.config.sh_degree, dir, &mut basis);
-    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
-    let mut trans = 1.0f32;
-    let mut acc = [0f32; 3];
-    let mut wsum = 0f32;
-    for i in -2 - extra..8 + extra {
-        let q = p + dir * (i as f32 * step);
-        let raw = raw_at(field, q);
-        if raw <= EMPTY {
-            continue;
-        }
-        let alpha = 1.0 - (-crate::field::activation::softplus(raw + shift) * delta).exp();
-        let w = trans * alpha;
-        if w > 0.0 {
-            let feat = channels_at(field, q);
-            for (c, a) in acc.iter_mut().enumerate() {
-                let coef = &feat[c * k..(c + 1) * k];
-                *a += w * sigmoid(coef.iter().zip(&basis[..k]).map(|(a, b)| a * b).sum());
-            }
-            wsum += w;
-        }
-        trans *= 1.0 - alpha;
-        if trans < 1e-3 {
-            break;
-        }
-    }
-    (wsum > 0.2).then(|| acc.map(|a| a / wsum))
+    composite(&samples, |q| colour_at(field, q, dir, &basis))
 }
 
 /// The weighted mean of `colour` over `samples` (None: no weight).
