@@ -386,7 +386,7 @@ fn removal_training() -> (String, String) {
 /// The mug, segmented from one click, removed from the demo scene; then mug and torus together.
 /// Slow (two scene fields): `cargo test --release --test removal -- --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "slow (the removal suite, ~45 min in all): cargo test --release --test removal -- --ignored"]
 fn demo_mug_and_mug_with_torus_removed_match_the_truth() {
     if !common::sam_installed() {
         return;
@@ -462,7 +462,7 @@ const SELF_CHECK_DB: f64 = 22.0;
 /// Slow: `cargo test --release --test removal --
 /// --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "slow (the removal suite, ~45 min in all): cargo test --release --test removal -- --ignored"]
 fn demo_scene_fields_render_held_out_views() {
     let dir = tempfile::tempdir().unwrap();
     for (layout, views, floor) in [
@@ -517,7 +517,7 @@ fn demo_scene_fields_render_held_out_views() {
 /// `objnerf extract` on the forward-facing demo (one click on the mug): the field's box holds the
 /// mug's true box, and held-out PSNR inside its true mask >= 26 dB. Slow (ignored).
 #[test]
-#[ignore]
+#[ignore = "slow (the removal suite, ~45 min in all): cargo test --release --test removal -- --ignored"]
 fn forward_facing_extract_holds_the_mug() {
     if !common::sam_installed() {
         return;

@@ -145,7 +145,7 @@ fn score(
 /// Issue 16's edits (a)-(e) of the demo scene on a 24-frame orbit against the exact truth:
 /// full-frame PSNR >= 26 dB and >= 24 dB inside the edited object's true mask.
 #[test]
-#[ignore]
+#[ignore = "slow (trains the demo fields): cargo test --release --test render_edit_quality -- --ignored"]
 fn demo_edits_against_exact_truth() {
     let f = fields();
     let (mug, torus) = (s(&f.mug), s(&f.torus));
@@ -236,7 +236,7 @@ fn depth_exr(dir: &Path, k: usize) -> Vec<f32> {
 /// depth (the ray tracer's surface, with the mug and the torus where the edit keeps them), i.e.
 /// lego as the composite should show it in front of and behind the scene's true geometry.
 #[test]
-#[ignore]
+#[ignore = "slow (trains the demo fields): cargo test --release --test render_edit_quality -- --ignored"]
 fn lego_inserted_into_the_demo_scene() {
     let Some(lego) = common::shared_data("lego") else {
         return;
@@ -350,10 +350,10 @@ fn lego_inserted_into_the_demo_scene() {
 /// background along an 8-frame orbit at 320x240, scored against `demo-scene --edit`'s exact
 /// truth: >= 28 dB full frame (issue 53; 25.87 dB when it was filed). Needs the SAM models.
 #[test]
-#[ignore]
+#[ignore = "slow (~10 min; its figure needs an idle machine): cargo test --release --test render_edit_quality the_users_path -- --ignored"]
 fn the_users_path_on_the_demo() {
     if !common::sam_installed() {
-        eprintln!("SKIP: the SAM models are not installed (objnerf models install)");
+        common::skip("the SAM models are not installed (objnerf models install)");
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
