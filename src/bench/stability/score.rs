@@ -28,7 +28,9 @@ pub const F1_FLOOR: f64 = 0.5;
 /// on) under this is a visibly wrong object. The demo mug scores about 20 dB there with the
 /// suite's step budget (its fine texture is near the grid's resolution; over the whole image
 /// that is 34 dB); a mug smeared by 2 degrees of pose noise or made from 5 views scores 11-13.
-pub const PSNR_FLOOR: f64 = 16.0;
+/// (Restored: commit 9084cc6 lowered it to 16 in the change that made cases pass, see
+/// CONTRIBUTING.md.)
+pub const PSNR_FLOOR: f64 = 18.0;
 /// Chamfer distance over the true box diagonal above this is a visibly wrong shape (the demo
 /// objects come out at 1-2%; `tests/extract.rs` holds them to 2% at more steps).
 pub const CHAMFER_FLOOR: f64 = 0.03;
