@@ -561,6 +561,7 @@ fn lego_200_reaches_28_db_within_5_minutes() {
         ev.ssim
     );
     assert_eq!(ev.num_views, 25);
+    common::figure("field.lego_200px_300s.test_psnr_db", ev.psnr, 28.0, true);
     assert!(ev.psnr >= 28.0, "PSNR {}", ev.psnr);
 }
 

@@ -191,6 +191,18 @@ fn demo_edits_against_exact_truth() {
         eprintln!(
             "{name}: full frame {full:.2} dB (worst frame {worst:.2}), inside the edited object's true mask {masked:.2} dB"
         );
+        common::figure(
+            &format!("render_edit.{name}.full_frame_psnr_db"),
+            full,
+            26.0,
+            true,
+        );
+        common::figure(
+            &format!("render_edit.{name}.inside_psnr_db"),
+            masked,
+            24.0,
+            true,
+        );
         if full < 26.0 || masked < 24.0 {
             failed.push(name);
         }
@@ -342,6 +354,12 @@ fn lego_inserted_into_the_demo_scene() {
         ious.iter().sum::<f64>() / ORBIT_FRAMES as f64,
         ours.display()
     );
+    common::figure(
+        "render_edit.lego_inserted.worst_index_iou",
+        worst,
+        0.9,
+        true,
+    );
     assert!(worst >= 0.9, "IoU per frame: {ious:.3?}");
 }
 
@@ -404,5 +422,6 @@ fn the_users_path_on_the_demo() {
         "the user's path: full frame {full:.2} dB (worst frame {worst:.2}), inside the moved mug's true mask {masked:.2} dB; frames in {}",
         work.display()
     );
+    common::figure("users_path.full_frame_psnr_db", full, 28.0, true);
     assert!(full >= 28.0, "full frame {full:.2} dB < 28");
 }

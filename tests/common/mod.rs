@@ -40,6 +40,34 @@ pub fn skip(reason: &str) {
     }
 }
 
+/// Record a figure a test checks (its value, the floor it is held to, whether it holds) in the
+/// file `$OBJNERF_QUALITY_LOG` names, one JSON object a line: `scripts/quality` gathers them
+/// into `examples/results/quality.json`. `higher`: the figure must be at least the floor (else
+/// at most).
+pub fn figure(id: &str, value: f64, floor: f64, higher: bool) {
+    let Some(log) = std::env::var_os("OBJNERF_QUALITY_LOG") else {
+        return;
+    };
+    let test = std::thread::current().name().unwrap_or("?").to_string();
+    let pass = if higher {
+        value >= floor
+    } else {
+        value <= floor
+    };
+    let line = serde_json::json!({
+        "test": test, "figure": id, "value": value, "floor": floor,
+        "higher_is_better": higher, "pass": pass,
+    });
+    use std::io::Write;
+    if let Ok(mut f) = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+    {
+        let _ = writeln!(f, "{line}");
+    }
+}
+
 /// `../shared/data/<name>` beside the checkout, or `None` with a printed reason (the test then
 /// returns early: CI always has the data).
 pub fn shared_data(name: &str) -> Option<PathBuf> {
