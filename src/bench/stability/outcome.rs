@@ -67,11 +67,12 @@ impl Verdict {
 
 /// One object's verdict from its scores and the warnings about it (or about the whole scene).
 /// A stage fails when its scores fall under the floors; a failure is detected only by a warning
-/// about it: one from the failing stage itself, from the capture (the scene stage: poses and
-/// views every later stage stands on), or from an earlier stage that failed too (its warning is
-/// then confirmed, and what follows inherits the cause). A warning about a later stage, or an
-/// unconfirmed one about an earlier stage, does not count. A warning about a stage the truth
-/// cannot score (lego's mesh: there is no true mesh) counts neither way.
+/// about it: one from the failing stage itself or one that speaks of it ([`also_about`]), one
+/// from the capture (the scene stage: poses and views every later stage stands on), or one from
+/// an earlier stage that failed too (its warning is then confirmed, and what follows inherits
+/// the cause). A warning about a later stage, or an unconfirmed one about an earlier stage, does
+/// not count. A warning about a stage the truth cannot score (lego's mesh: there is no true
+/// mesh) counts neither way.
 fn object_verdict(s: &ObjectScores, warnings: &[Warning]) -> Verdict {
     let failed = |stage: Stage| match stage {
         Stage::Scene => Some(false),
@@ -82,7 +83,7 @@ fn object_verdict(s: &ObjectScores, warnings: &[Warning]) -> Verdict {
     let warned: Vec<Stage> = warnings
         .iter()
         .filter(|w| w.object.as_deref().is_none_or(|o| o == s.object))
-        .map(|w| w.stage)
+        .flat_map(|w| std::iter::once(w.stage).chain(also_about(w.code).iter().copied()))
         .filter(|st| *st == Stage::Scene || failed(*st).is_some())
         .collect();
     let stages = [Stage::Segment, Stage::Field, Stage::Mesh];
@@ -100,6 +101,17 @@ fn object_verdict(s: &ObjectScores, warnings: &[Warning]) -> Verdict {
         (true, false) => Verdict::FalseAlarm,
         (false, _) if failures.iter().all(|f| about(*f)) => Verdict::Detected,
         (false, _) => Verdict::Silent,
+    }
+}
+
+/// The later stages a check's warning speaks of besides its own, as its message tells the user
+/// (`docs/self-checks.md`): views from one side only, or too few, leave the field and the mesh
+/// to make up what no view saw; floaters end up as stray pieces of the mesh.
+fn also_about(code: &str) -> &'static [Stage] {
+    match code {
+        "one_sided_views" | "few_views_ok" => &[Stage::Field, Stage::Mesh],
+        "floaters" => &[Stage::Mesh],
+        _ => &[],
     }
 }
 
@@ -277,6 +289,21 @@ mod tests {
         );
         assert_eq!(
             object_verdict(&spilled, &[warn(Stage::Field)]),
+            Verdict::Silent
+        );
+        // A wrong back of the mesh, told by the views' coverage.
+        let unseen_back = ObjectScores {
+            chamfer: Some(0.05),
+            ..good()
+        };
+        let mut one_sided = warn(Stage::Segment);
+        one_sided.code = "one_sided_views";
+        assert_eq!(
+            object_verdict(&unseen_back, &[one_sided]),
+            Verdict::Detected
+        );
+        assert_eq!(
+            object_verdict(&unseen_back, &[warn(Stage::Segment)]),
             Verdict::Silent
         );
     }
