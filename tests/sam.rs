@@ -244,7 +244,10 @@ fn a_missing_library_or_model_is_an_error_naming_the_install_command() {
     let tmp = tempfile::tempdir().unwrap();
     let empty = ModelsDir::at(tmp.path());
     for e in [
-        empty.segmenter(1).err().expect("no library"),
+        empty
+            .segmenter(1, Precision::Fp32)
+            .err()
+            .expect("no library"),
         empty.require_sam().expect_err("no models"),
         Segmenter::from_files(
             &tmp.path().join("libonnxruntime.so.1.31.1"),
