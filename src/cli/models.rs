@@ -113,8 +113,8 @@ impl ModelsCmd {
 /// Which MobileSAM encoder a command runs (shared by every command that segments).
 #[derive(Args, Debug, Clone, Copy)]
 pub struct SamPrecisionArg {
-    /// MobileSAM's encoder: int8 (quantised linear layers, fused attention: faster, masks within
-    /// IoU 0.98 of fp32's) or fp32 (the reference graph).
+    /// MobileSAM's encoder: fp32 (the reference graph) or int8 (quantised Linear layers, fused
+    /// attention: about 0.75 x the time; examples/results/bench_sam.md).
     #[arg(long, default_value_t = Precision::default(), value_parser = |s: &str| Precision::parse(s))]
     pub sam_precision: Precision,
 }
