@@ -30,7 +30,7 @@ fn models() -> Option<ModelsDir> {
                 skip_checkpoint: true,
             };
             if let Err(e) = install(&dir, &opts) {
-                eprintln!("SKIP: ONNX Runtime / MobileSAM not installed and `objnerf models install` failed here: {e}");
+                common::skip(&format!("ONNX Runtime / MobileSAM not installed and `objnerf models install` failed here: {e}"));
                 return None;
             }
         }

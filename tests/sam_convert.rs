@@ -34,7 +34,7 @@ fn models() -> Option<(ModelsDir, PathBuf)> {
         let ckpt_ok = sha256_file(&ckpt).is_ok_and(|h| h == CHECKPOINT_SHA256);
         if dir.require_library().is_err() || !ckpt_ok {
             if let Err(e) = install(&dir, &InstallOptions::default()) {
-                eprintln!("SKIP: ONNX Runtime / mobile_sam.pt not installed and `objnerf models install` failed here: {e}");
+                common::skip(&format!("ONNX Runtime / mobile_sam.pt not installed and `objnerf models install` failed here: {e}"));
                 return None;
             }
         }

@@ -19,9 +19,7 @@ use objnerf::Scene;
 fn models() -> Option<ModelsDir> {
     let dir = ModelsDir::from_env().ok()?;
     if dir.require_sam().is_err() || dir.require_library().is_err() {
-        eprintln!(
-            "SKIP: SAM models are not installed (scripts/setup runs `objnerf models install`)"
-        );
+        common::skip("SAM models are not installed (scripts/setup runs `objnerf models install`)");
         return None;
     }
     Some(dir)
