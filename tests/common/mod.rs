@@ -30,13 +30,19 @@ pub fn skip(reason: &str) {
                 .map_or(stem.clone(), |(n, _)| n.to_string())
         })
         .unwrap_or_default();
+    append_line(&log, &format!("{bin}::{test}: {reason}"));
+}
+
+/// Append one line to a log a script gathers after the tests (best effort: a test never fails
+/// for its log).
+fn append_line(log: &std::ffi::OsStr, line: &str) {
     use std::io::Write;
     if let Ok(mut f) = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(log)
     {
-        let _ = writeln!(f, "{bin}::{test}: {reason}");
+        let _ = writeln!(f, "{line}");
     }
 }
 
@@ -58,14 +64,7 @@ pub fn figure(id: &str, value: f64, floor: f64, higher: bool) {
         "test": test, "figure": id, "value": value, "floor": floor,
         "higher_is_better": higher, "pass": pass,
     });
-    use std::io::Write;
-    if let Ok(mut f) = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(log)
-    {
-        let _ = writeln!(f, "{line}");
-    }
+    append_line(&log, &line.to_string());
 }
 
 /// `../shared/data/<name>` beside the checkout, or `None` with a printed reason (the test then
