@@ -89,13 +89,15 @@ fn main() -> objnerf::Result<()> {
     let cpu0 = bench::cpu_seconds();
     let t0 = std::time::Instant::now();
     let mut last = 0.0;
+    // SF_LOG_EVERY: a line every this many steps (else every 20 s).
+    let log_every: usize = env("SF_LOG_EVERY").unwrap_or(0);
     let (mut spr, mut nspr) = (0.0f64, 0usize);
     let mut fit = SceneFit::new(&scene, &opts)?;
     eprintln!("space: {}", fit.space_choice());
     fit.train(&opts.fit.stop_rule(), &mut |s| {
         spr += s.samples_per_ray as f64;
         nspr += 1;
-        if s.seconds >= last {
+        if (log_every > 0 && s.step % log_every == 0) || (log_every == 0 && s.seconds >= last) {
             eprintln!(
                 "t={:.0}s step={} psnr={:.2} samples/ray={:.1} rays/s={:.0}",
                 s.seconds, s.step, s.psnr, s.samples_per_ray, s.rays_per_second

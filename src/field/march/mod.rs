@@ -63,6 +63,10 @@ pub struct Sample {
     pub base: u32,
     pub frac: [f32; 3],
     pub t: f32,
+    /// Distance along the path in space coordinates (from where the march began): the
+    /// distortion loss measures spread in space, whose samples are evenly spaced, not in world
+    /// length, which NDC and the contraction stretch without bound towards infinity.
+    pub s: f32,
     pub alpha: f32,
     /// Transmittance in front of the sample.
     pub trans: f32,
@@ -135,13 +139,14 @@ pub fn forward_seen_from(
             radius,
         }) => {
             let step = opt.step * f.voxel;
-            for (t, x) in ContractedSteps::new(o, d, t0, center, radius, step, jitter) {
+            let steps = ContractedSteps::new(o, d, t0, center, radius, step, jitter);
+            for (k, (t, x)) in steps.enumerate() {
                 let p = (x - f.box_min) / f.voxel;
                 let (b, fr) = f.grid.locate([p.x, p.y, p.z]);
                 if !f.brick_occupied(b) {
                     continue;
                 }
-                if !m.visit(b, fr, t) {
+                if !m.visit(b, fr, t, k as f32 * step) {
                     break;
                 }
             }
@@ -244,17 +249,18 @@ impl<'a> Marcher<'a> {
             let p_next = og + dg * t_next;
             f.grid
                 .prefetch_cell(f.grid.locate([p_next.x, p_next.y, p_next.z]).0);
-            if !self.visit(b, fr, depth.world_t(t)) {
+            if !self.visit(b, fr, depth.world_t(t), t) {
                 break;
             }
             t = t_next;
         }
     }
 
-    /// Shade the sample at cell `b`, fraction `fr`, world distance `t`: composite and record it
-    /// when it is occupied and not transparent. False once the ray is opaque (stop marching).
+    /// Shade the sample at cell `b`, fraction `fr`, world distance `t` and space distance `s`:
+    /// composite and record it when it is occupied and not transparent. False once the ray is
+    /// opaque (stop marching).
     #[inline]
-    fn visit(&mut self, b: [usize; 3], fr: [f32; 3], t: f32) -> bool {
+    fn visit(&mut self, b: [usize; 3], fr: [f32; 3], t: f32, s: f32) -> bool {
         let f = self.f;
         if !f.occupied(b) {
             return true;
@@ -288,6 +294,7 @@ impl<'a> Marcher<'a> {
             base: (b[0] + dims[0] * (b[1] + dims[1] * b[2])) as u32,
             frac: fr,
             t,
+            s,
             alpha,
             trans: self.trans,
             rgb,
@@ -407,11 +414,14 @@ pub fn backward(
     }
 }
 
-/// Mip-NeRF 360's distortion loss over a ray's kept samples, with distances in `unit` world
-/// lengths and each sample spanning `delta` units: L = sum_ij w_i w_j |s_i - s_j| +
-/// sum_i w_i^2 delta / 3. It is small when the weight sits in one short interval, so it pulls a
-/// surface's weight together where colour alone leaves it spread (uniformly coloured parts of an
-/// object, seen from few directions). Writes dL/dw_i into `g_w` and returns L.
+/// Mip-NeRF 360's distortion loss over a ray's kept samples, with distances along the path in
+/// space coordinates ([`Sample::s`]) in `unit` lengths and each sample spanning `delta` units:
+/// L = sum_ij w_i w_j |s_i - s_j| + sum_i w_i^2 delta / 3. It is small when the weight sits in
+/// one short interval, so it pulls a surface's weight together where colour alone leaves it
+/// spread (uniformly coloured parts of an object, seen from few directions). Measured in world
+/// length it put forward fields on their near plane, where NDC's samples are closest in the
+/// world: fern and the forward demo without depth held out 14.4-14.5 dB (3000 steps), 27.5 on
+/// the demo with the loss off. Writes dL/dw_i into `g_w` and returns L.
 pub fn distortion(samples: &[Sample], unit: f32, delta: f32, g_w: &mut Vec<f32>) -> f32 {
     g_w.clear();
     let inv = 1.0 / unit;
@@ -419,7 +429,7 @@ pub fn distortion(samples: &[Sample], unit: f32, delta: f32, g_w: &mut Vec<f32>)
     for s in samples {
         let w = s.trans * s.alpha;
         w_all += w;
-        ws_all += w * s.t * inv;
+        ws_all += w * s.s * inv;
     }
     // Prefix sums of w and w s before the current sample: sum_j w_j |s_i - s_j| =
     // s_i W_before - S_before + (S_after - s_i W_after).
@@ -427,7 +437,7 @@ pub fn distortion(samples: &[Sample], unit: f32, delta: f32, g_w: &mut Vec<f32>)
     let mut loss = 0f32;
     for s in samples {
         let w = s.trans * s.alpha;
-        let si = s.t * inv;
+        let si = s.s * inv;
         let w_after = w_all - w_before - w;
         let ws_after = ws_all - ws_before - w * si;
         let spread = si * w_before - ws_before + ws_after - si * w_after;

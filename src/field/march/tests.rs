@@ -297,3 +297,53 @@ fn colour_threshold_follows_the_step() {
         );
     }
 }
+
+/// In NDC the samples are evenly spaced in space but ever further apart in the world: the
+/// distortion loss must measure them in space, or it reads far weight as far spread and pulls
+/// every ray's weight onto the near plane (what put forward fields there).
+#[test]
+fn distortion_measures_spread_in_space_not_world_length() {
+    let mut f = Field::new(
+        FieldConfig {
+            sh_degree: 0,
+            alpha_init: 0.02,
+            base_voxel: 0.05,
+        },
+        Vec3::new(-1.0, -1.0, -0.5),
+        Vec3::new(1.0, 1.0, 0.5),
+        [41, 41, 21],
+    );
+    f.space = crate::space::Space::Ndc(crate::space::NdcSpace {
+        rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        center: [0.0; 3],
+        scale_xy: [1.5, 1.5],
+        near: 1.0,
+        z_scale: 0.5,
+    });
+    let opt = RenderOptions {
+        step: 1.0,
+        alpha_thresh: 0.0,
+        term_thresh: 0.0,
+        pixel_samples: 1,
+    };
+    let mut samples = Vec::new();
+    forward(&f, &opt, Vec3::ZERO, Vec3::Z, 0.0, [0.0; 3], &mut samples);
+    assert!(samples.len() > 10);
+    let step = opt.step * f.voxel;
+    for pair in samples.windows(2) {
+        assert!((pair[1].s - pair[0].s - step).abs() < 1e-4 * step);
+    }
+    // World lengths grow with depth (disparity is what is even) ...
+    let n = samples.len();
+    let near_gap = samples[1].t - samples[0].t;
+    let far_gap = samples[n - 1].t - samples[n - 2].t;
+    assert!(far_gap > 5.0 * near_gap, "{near_gap} {far_gap}");
+    // ... and the loss does not see them: the same weights with the world lengths changed
+    // give the same loss.
+    let unit = f.config.base_voxel;
+    let delta = opt.step * f.voxel / unit;
+    let before = distortion(&samples, unit, delta, &mut Vec::new());
+    let mut stretched = samples.clone();
+    stretched.iter_mut().for_each(|s| s.t *= 10.0);
+    assert_eq!(distortion(&stretched, unit, delta, &mut Vec::new()), before);
+}
