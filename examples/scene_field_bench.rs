@@ -3,7 +3,7 @@
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
 //! held out), SF_NET, SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C, SF_FREE, SF_DEPTH_W (a ring's or
-//! unbounded capture's), SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's).
+//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's).
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
 
@@ -75,6 +75,7 @@ fn main() -> objnerf::Result<()> {
     };
     // A forward capture's depth settings (SF_FWD_*).
     let f = &mut opts.forward;
+    f.distortion_weight = env("SF_FWD_DIST").unwrap_or(f.distortion_weight);
     f.depth_weight = env("SF_FWD_DEPTH_W").unwrap_or(f.depth_weight);
     f.free_space_weight = env("SF_FWD_FREE").unwrap_or(f.free_space_weight);
     f.seed_from_depth = env("SF_FWD_SEED").unwrap_or(f.seed_from_depth);

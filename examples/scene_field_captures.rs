@@ -140,7 +140,7 @@ fn main() {
         .map(|(s, nerf, plenoxels)| json!({"scene": s, "nerf": nerf, "plenoxels": plenoxels}))
         .collect();
     let result = json!({
-        "machine": "2-core AMD EPYC, 24 GiB, no GPU",
+        "machine": objnerf::util::machine::machine(),
         "command": std::env::args().collect::<Vec<_>>().join(" "),
         "runs": runs,
         "published": published,
