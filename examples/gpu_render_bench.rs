@@ -13,9 +13,6 @@
 //! the dispatch and reading the frame back, as `render-edit` pays them. Each GPU frame is
 //! checked against the CPU's (largest RGB difference recorded).
 
-#[path = "support/bench.rs"]
-mod bench;
-
 use objnerf::demo::edit_truth::demo_orbit;
 use objnerf::demo::fields::{write_object_field, DemoFieldOptions};
 use objnerf::demo::{write_demo_scene, DemoOptions};
@@ -92,7 +89,7 @@ fn main() -> Res<()> {
     let four = json!([{"name": "mug", "model": mug}, {"name": "torus", "model": torus},
         {"name": "mug.001", "model": mug, "translation": [0.9, 0.0, 0.0]},
         {"name": "torus.001", "model": torus, "translation": [0.6, 0.8, 0.0]}]);
-    let white = json!({"color": [1.0, 1.0, 1.0]});
+    let white = json!({"color": "#ffffff"});
     let mut configs = vec![
         (
             "1 object",

@@ -335,7 +335,7 @@ fn lego_renders_the_same_on_both() {
 
 fn write_edit(dir: &Path, mug: &Path) -> PathBuf {
     let p = dir.join("edit.json");
-    let doc = serde_json::json!({"version": 1, "background": {"color": [1.0, 1.0, 1.0]},
+    let doc = serde_json::json!({"version": 1, "background": {"color": "#ffffff"},
         "objects": [{"name": "mug", "model": mug}]});
     std::fs::write(&p, doc.to_string()).unwrap();
     p

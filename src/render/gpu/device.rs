@@ -110,9 +110,9 @@ impl Gpu {
         adapters.sort_by_key(|a| rank(a.get_info().device_type));
         let Some(adapter) = adapters.into_iter().next() else {
             let looked = match &wanted {
-                Some(w) => format!("an adapter named like '{w}' ({ADAPTER_ENV})"),
-                None if software_ok => "a GPU adapter".to_string(),
-                None => "a hardware GPU adapter".to_string(),
+                Some(w) => format!("adapter named like '{w}' ({ADAPTER_ENV})"),
+                None if software_ok => "GPU adapter".to_string(),
+                None => "hardware GPU adapter (a software one does not count)".to_string(),
             };
             let seen = if found.is_empty() {
                 "none".to_string()
@@ -122,8 +122,8 @@ impl Gpu {
             return Err(Error::external(
                 "GPU",
                 format!(
-                    "no {looked} through {BACKEND_NAMES}; adapters found: {seen} (on Linux \
-                     without a GPU, Mesa's lavapipe is Debian's mesa-vulkan-drivers)"
+                    "found no {looked} through {BACKEND_NAMES}; adapters found: {seen} (on \
+                     Linux without a GPU, Mesa's lavapipe is Debian's mesa-vulkan-drivers)"
                 ),
             ));
         };
