@@ -155,6 +155,11 @@ fn depth_misses(a: &[f32], b: &[f32], tol: f32) -> usize {
 fn check_rgb(what: &str, cpu: &[[f32; 3]], gpu: &[[f32; 3]]) {
     let (mean, max) = rgb_diff(cpu, gpu);
     eprintln!("{what}: rgb mean |diff| {mean:.2e}, max {max:.2e}");
+    let off = cpu.iter().zip(gpu).enumerate();
+    let off = off.filter(|(_, (p, q))| (0..3).any(|c| (p[c] - q[c]).abs() > 1.0 / 255.0));
+    for (i, (p, q)) in off.take(10) {
+        eprintln!("  pixel {i}: cpu {p:?} gpu {q:?}");
+    }
     assert!(mean <= 1e-3, "{what}: rgb mean |diff| {mean}");
     assert!(max <= 1.0 / 255.0, "{what}: rgb max |diff| {max}");
 }
