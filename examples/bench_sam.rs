@@ -1,7 +1,10 @@
-//! SAM's encoder and decoder time of our ONNX Runtime path against Python
-//! onnxruntime (same version, same ONNX files, same prepared inputs, same thread count), measured
-//! in one run and interleaved run by run, so that noise from other work on the machine hits both
-//! sides alike. The benchmark sets up its own Python venv. Writes JSON and an SVG chart.
+//! SAM's encoders against Python onnxruntime's fp32 (issue 58): our fp32 and int8 encoders (and,
+//! for the chart of time against mask IoU, the two halves of int8: int8 Linear layers alone and
+//! fused attention alone), each timed in the same run, interleaved round by round with the Python
+//! peer on the same prepared tensors, so that noise from other work on the machine hits every side
+//! alike; the decoder against Python's; and every encoder's masks against fp32's on the demo,
+//! lego and fox views (support/sam_views.rs). The benchmark sets up its own Python venv. Writes
+//! JSON and an SVG chart.
 //!
 //! cargo run --release --example bench_sam -- [--image IMG]... [--runs N] [--threads N] [--out-dir DIR]
 
@@ -9,15 +12,23 @@
 mod bench;
 #[path = "support/sam.rs"]
 mod sam_bench;
+#[path = "support/sam_views.rs"]
+mod sam_views;
 
 use bench::Stats;
 use clap::Parser;
 use objnerf::models::{ModelsDir, ONNXRUNTIME_VERSION};
+use objnerf::sam::convert::encoder::{build_variant, Variant};
+use objnerf::sam::convert::torch::StateDict;
 use objnerf::sam::preprocess::encoder_input;
-use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
+use objnerf::sam::{Precision, Prompts, Segmenter, SegmenterOptions};
 use objnerf::util::atomic::write_bytes_atomic;
+use objnerf::util::chart::{palette, svg, Layer, Mark, Panel};
+use objnerf::util::mem::peak_rss_mib;
 use objnerf::{Error, Result};
-use sam_bench::{bench_images, chart_svg, BenchArgs, RunInfo};
+use prost::Message;
+use sam_bench::{bench_images, BenchArgs, RunInfo};
+use sam_views::{compare, iou_cases, masks, IouSummary};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -33,33 +44,41 @@ pub struct BenchOptions {
     pub venv: Option<PathBuf>,
 }
 
+/// One of our encoders.
 #[derive(Clone, Debug, serde::Serialize)]
-pub struct BackendTimes {
+pub struct EncoderRow {
     pub name: String,
-    pub load_seconds: f64,
+    pub variant: Variant,
+    /// Where it came from: the installed file, or written by this run from the checkpoint.
+    pub file: PathBuf,
     pub encoder: Stats,
-    pub decoder: Stats,
+    /// Median over rounds of (this encoder / Python fp32), each round's pair run back to back.
+    pub paired_ratio_to_python: f64,
+    /// Its masks against our fp32 encoder's, one click per case.
+    pub iou_vs_fp32: IouSummary,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BenchReport {
     #[serde(flatten)]
     pub run: RunInfo,
-    pub ours: BackendTimes,
-    pub python: BackendTimes,
-    /// ours / Python, medians.
-    pub encoder_ratio: f64,
+    /// fp32, int8, then the chart's two halves of int8.
+    pub encoders: Vec<EncoderRow>,
+    /// The peer: Python onnxruntime on our fp32 encoder file.
+    pub python_fp32_encoder: Stats,
+    pub python_load_seconds: f64,
+    pub decoder: Stats,
+    pub python_decoder: Stats,
     pub decoder_ratio: f64,
-    /// Median of the per-round ratios (each round runs both backends back to back, so this is
-    /// the least sensitive to a machine whose load changes over the run).
-    pub encoder_paired_ratio: f64,
-    /// The issue's goal: encoder median within 1.1 x Python's.
-    pub encoder_goal_met: bool,
-    /// Our resize + normalise + pad per image (not part of the comparison: both backends are
-    /// given the same prepared tensor).
-    pub ours_preprocess: Stats,
-    /// Largest absolute difference between the two backends' embeddings of the first image.
+    /// The issue's goal: the int8 encoder at most 0.5 x Python fp32's time (paired) with mean mask
+    /// IoU >= 0.98 against fp32's.
+    pub int8_goal_met: bool,
+    /// Largest absolute difference between our fp32 and Python's embeddings of the first image.
     pub embedding_max_abs_diff: f64,
+    /// This process's peak resident memory (every encoder session loaded at once).
+    pub peak_rss_mib: u64,
+    /// The machine's load over the last minute, at the start and at the end.
+    pub load_average: [String; 2],
     pub json: PathBuf,
     pub chart: PathBuf,
 }
@@ -160,24 +179,68 @@ fn read_f32(path: &Path) -> Result<Vec<f32>> {
         .collect())
 }
 
+fn load_avg() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
+/// Our encoders: the installed fp32 and int8 files, and the chart's other two variants written
+/// from the checkpoint into `work`.
+fn encoders(dir: &ModelsDir, work: &Path) -> Result<Vec<(String, Variant, PathBuf)>> {
+    let (fp32, _) = dir.require_sam_at(Precision::Fp32)?;
+    let (int8, _) = dir.require_sam_at(Precision::Int8)?;
+    let mut out = vec![
+        ("fp32".to_string(), Variant::FP32, fp32),
+        ("int8".to_string(), Variant::INT8, int8),
+    ];
+    let sd = StateDict::load(&dir.checkpoint())?;
+    for (name, v) in [
+        (
+            "int8 Linear only",
+            Variant {
+                int8_linears: true,
+                fused_attention: false,
+            },
+        ),
+        (
+            "fused attention only",
+            Variant {
+                int8_linears: false,
+                fused_attention: true,
+            },
+        ),
+    ] {
+        let path = work.join(format!("{}.onnx", name.replace(' ', "_")));
+        write_bytes_atomic(&path, &build_variant(&sd, v)?.encode_to_vec())?;
+        out.push((name.to_string(), v, path));
+    }
+    Ok(out)
+}
+
 pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
+    let load_start = load_avg();
     let runs = opts.common.runs.max(5);
     let lib = dir.require_library()?;
-    let (enc, dec) = dir.require_sam()?;
     let so = SegmenterOptions {
         threads: opts.common.threads,
         disk_cache: None,
     };
-    let seg = Segmenter::from_files(&lib, &enc, &dec, &so)?;
-    let threads = seg.threads();
-
-    let (images, names) = bench_images(&opts.common.images)?;
-
-    // Both backends get the same prepared tensors; the prompt is one click at the image centre.
     let work = tempfile::Builder::new()
         .prefix("objnerf-bench-")
         .tempdir()
         .map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let list = encoders(dir, work.path())?;
+    let segs: Vec<Segmenter> = list
+        .iter()
+        .map(|(_, _, enc)| Segmenter::from_files(&lib, enc, &dir.decoder(), &so))
+        .collect::<Result<_>>()?;
+    let seg = &segs[0];
+    let threads = seg.threads();
+
+    let (images, names) = bench_images(&opts.common.images)?;
+
+    // Every side gets the same prepared tensors; the prompt is one click at the image centre.
     let mut inputs = Vec::new();
     let mut embs = Vec::new();
     let mut spec = Vec::new();
@@ -208,7 +271,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     let py = ensure_venv(&venv)?;
     let (mut pyb, py_load) = PyBench::start(&py, &script, dir, threads, work.path())?;
 
-    // Correctness first: the two backends must compute the same embedding.
+    // Correctness first: our fp32 and Python's must compute the same embedding.
     let saved = work.path().join("py_emb0.f32");
     pyb.time(&format!("enc 0 {}", saved.display()))?;
     let py_emb = read_f32(&saved)?;
@@ -218,30 +281,31 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
         .map(|(a, b)| (a - b).abs() as f64)
         .fold(0.0, f64::max);
     // Warm-up (untimed) for ours; Python's warm-up was the run above.
-    seg.run_encoder(&inputs[0])?;
+    for s in &segs {
+        s.run_encoder(&inputs[0])?;
+    }
     seg.predict_allow_empty(&embs[0].0, &embs[0].1)?;
     pyb.time("dec 0")?;
 
-    let (mut oe, mut pe, mut od, mut pd) = (vec![], vec![], vec![], vec![]);
-    let mut prep = vec![];
+    // Each round runs every encoder once (ours, then Python as one more side), starting from a
+    // different side each round so that a slow phase on the machine is shared fairly.
+    let sides = segs.len() + 1;
+    let mut enc_times = vec![Vec::new(); sides];
+    let (mut od, mut pd) = (vec![], vec![]);
     for r in 0..runs {
         let i = r % images.len();
         eprintln!("run {}/{runs}", r + 1);
-        let t0 = std::time::Instant::now();
-        std::hint::black_box(encoder_input(&images[i]));
-        prep.push(t0.elapsed().as_secs_f64());
-        // Alternate who goes first so that a slow phase on the machine is shared fairly.
-        let ours_first = r % 2 == 0;
-        for pass in 0..2 {
-            if (pass == 0) == ours_first {
-                oe.push(seg.run_encoder(&inputs[i])?.1);
-            } else {
-                pe.push(pyb.time(&format!("enc {i}"))?);
-            }
+        for k in 0..sides {
+            let side = (k + r) % sides;
+            let t = match segs.get(side) {
+                Some(s) => s.run_encoder(&inputs[i])?.1,
+                None => pyb.time(&format!("enc {i}"))?,
+            };
+            enc_times[side].push(t);
         }
         for _ in 0..3 {
             for pass in 0..2 {
-                if (pass == 0) == ours_first {
+                if (pass + r) % 2 == 0 {
                     od.push(
                         seg.predict_allow_empty(&embs[i].0, &embs[i].1)?
                             .decoder_seconds,
@@ -254,67 +318,141 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
     }
     drop(pyb);
 
-    let ours = BackendTimes {
-        name: "objnerf (Rust, ort crate)".into(),
-        load_seconds: seg.load_seconds,
-        encoder: Stats::of(&oe),
-        decoder: Stats::of(&od),
-    };
-    let python = BackendTimes {
-        name: "Python onnxruntime".into(),
-        load_seconds: py_load,
-        encoder: Stats::of(&pe),
-        decoder: Stats::of(&pd),
-    };
-    let encoder_ratio = ours.encoder.median / python.encoder.median;
-    let paired: Vec<f64> = oe.iter().zip(&pe).map(|(a, b)| a / b).collect();
+    // Masks against fp32's on the demo, lego and fox views.
+    eprintln!("masks on the demo, lego and fox views ...");
+    let cases = iou_cases(work.path())?;
+    let reference = masks(seg, &cases)?;
+    let python = &enc_times[segs.len()];
+    let mut rows = Vec::new();
+    for (k, ((name, variant, file), s)) in list.into_iter().zip(&segs).enumerate() {
+        let got = if k == 0 {
+            reference.clone()
+        } else {
+            masks(s, &cases)?
+        };
+        let paired: Vec<f64> = enc_times[k]
+            .iter()
+            .zip(python)
+            .map(|(a, b)| a / b)
+            .collect();
+        rows.push(EncoderRow {
+            name,
+            variant,
+            file,
+            encoder: Stats::of(&enc_times[k]),
+            paired_ratio_to_python: Stats::of(&paired).median,
+            iou_vs_fp32: compare(&cases, &reference, &got),
+        });
+    }
     let json = opts.common.out_dir.join("bench_sam.json");
     let chart = opts.common.out_dir.join("bench_sam.svg");
+    let (decoder, python_decoder) = (Stats::of(&od), Stats::of(&pd));
+    let int8 = &rows[1];
     let report = BenchReport {
         run: RunInfo::new(threads, names, runs),
-        encoder_ratio,
-        decoder_ratio: ours.decoder.median / python.decoder.median,
-        encoder_paired_ratio: Stats::of(&paired).median,
-        encoder_goal_met: encoder_ratio <= 1.1,
+        int8_goal_met: int8.paired_ratio_to_python <= 0.5 && int8.iou_vs_fp32.mean >= 0.98,
+        python_fp32_encoder: Stats::of(python),
+        python_load_seconds: py_load,
+        decoder_ratio: decoder.median / python_decoder.median,
+        decoder,
+        python_decoder,
+        encoders: rows,
         embedding_max_abs_diff: diff,
-        ours_preprocess: Stats::of(&prep),
-        ours,
-        python,
+        peak_rss_mib: peak_rss_mib(),
+        load_average: [load_start, load_avg()],
         json: json.clone(),
         chart: chart.clone(),
     };
     let text = serde_json::to_string_pretty(&report).expect("report serialises");
     write_bytes_atomic(&json, text.as_bytes())?;
-    let svg = chart_svg(
-        [
-            ("encoder", &report.ours.encoder, &report.python.encoder),
-            ("decoder", &report.ours.decoder, &report.python.decoder),
-        ],
-        ["objnerf (ort crate)", "Python onnxruntime"],
-        "ours/python",
-        threads,
-    )
-    .map_err(|e| Error::invalid(format!("chart: {e}")))?;
+    let svg = chart_svg(&report, threads).map_err(|e| Error::invalid(format!("chart: {e}")))?;
     write_bytes_atomic(&chart, svg.as_bytes())?;
     Ok(report)
+}
+
+/// Left: every timed encoder run of fp32, int8 and the Python peer, medians dashed. Right: each
+/// encoder's time (paired ratio to the peer) against its masks' mean IoU with fp32's (worst as
+/// a smaller mark).
+fn chart_svg(r: &BenchReport, threads: usize) -> objnerf::util::chart::ChartResult<String> {
+    let mut runs = Vec::new();
+    let named: Vec<(&str, &Stats)> = vec![
+        ("ours fp32", &r.encoders[0].encoder),
+        ("ours int8", &r.encoders[1].encoder),
+        ("Python onnxruntime fp32", &r.python_fp32_encoder),
+    ];
+    for (k, (name, st)) in named.iter().enumerate() {
+        let pts: Vec<(f64, f64)> = st
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (i as f64 + 1.0, s * 1e3))
+            .collect();
+        let x = 0.0..pts.len() as f64 + 1.0;
+        runs.push(Layer::new(*name, palette(k), pts));
+        runs.push(Layer::level(None, palette(k), st.median * 1e3, &x));
+    }
+    let mut left = Panel::fitted(
+        &format!(
+            "encoder, {threads} threads: int8/Python {:.2} paired",
+            r.encoders[1].paired_ratio_to_python
+        ),
+        "run",
+        "ms",
+        runs,
+    );
+    left.y.start = 0.0;
+    let mut pts = Vec::new();
+    for (k, e) in r.encoders.iter().enumerate() {
+        let x = e.paired_ratio_to_python;
+        pts.push(
+            Layer::new(e.name.clone(), palette(k), vec![(x, e.iou_vs_fp32.mean)])
+                .mark(Mark::Points(6)),
+        );
+        pts.push(Layer {
+            name: None,
+            colour: palette(k),
+            points: vec![(x, e.iou_vs_fp32.worst)],
+            mark: Mark::Points(3),
+        });
+    }
+    let mut right = Panel::fitted(
+        "time against masks (big: mean IoU, small: worst)",
+        "encoder time / Python fp32 (paired)",
+        "mask IoU vs fp32",
+        pts,
+    );
+    right.x.start = 0.0;
+    right.x.end = right.x.end.max(1.1);
+    svg((1000, 420), 1, &[left, right])
 }
 
 fn main() -> Result<()> {
     let opts = BenchOptions::parse();
     let r = bench_sam(&ModelsDir::from_env()?, &opts)?;
     println!(
-        "encoder median: ours {:.3} s, Python {:.3} s, ratio {:.3} (goal <= 1.1: {})",
-        r.ours.encoder.median, r.python.encoder.median, r.encoder_ratio, r.encoder_goal_met
+        "Python onnxruntime fp32 encoder: median {:.3} s",
+        r.python_fp32_encoder.median
     );
-    println!(
-        "encoder paired ratio (median of per-round ours/Python): {:.3}",
-        r.encoder_paired_ratio
-    );
+    for e in &r.encoders {
+        println!(
+            "{:<22} median {:.3} s, paired ratio to Python fp32 {:.3}; mask IoU vs fp32 mean {:.4}, worst {:.4} ({})",
+            e.name,
+            e.encoder.median,
+            e.paired_ratio_to_python,
+            e.iou_vs_fp32.mean,
+            e.iou_vs_fp32.worst,
+            e.iou_vs_fp32.worst_case
+        );
+    }
     println!(
         "decoder median: ours {:.1} ms, Python {:.1} ms, ratio {:.3}",
-        r.ours.decoder.median * 1e3,
-        r.python.decoder.median * 1e3,
+        r.decoder.median * 1e3,
+        r.python_decoder.median * 1e3,
         r.decoder_ratio
+    );
+    println!(
+        "goal (int8 <= 0.5 x Python fp32, mean IoU >= 0.98): {}; peak RSS {} MiB",
+        r.int8_goal_met, r.peak_rss_mib
     );
     println!("wrote {} and {}", r.json.display(), r.chart.display());
     Ok(())

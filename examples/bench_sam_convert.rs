@@ -73,12 +73,8 @@ pub fn bench_convert(dir: &ModelsDir, opts: &ConvertBenchOptions) -> Result<Conv
         .prefix("objnerf-bench-convert-")
         .tempdir()
         .map_err(|e| Error::io(std::env::temp_dir(), e))?;
-    let (enc, dec) = (
-        work.path().join("encoder.onnx"),
-        work.path().join("decoder.onnx"),
-    );
     let t0 = Instant::now();
-    write_mobile_sam_onnx(&ckpt, &enc, &dec)?;
+    let [enc, dec, _] = write_mobile_sam_onnx(&ckpt, work.path())?;
     let convert_seconds = t0.elapsed().as_secs_f64();
 
     let so = SegmenterOptions {

@@ -619,7 +619,7 @@ fn corrupt_corpus() {
 /// target reads beside its input). Run once by hand; the seeds are committed:
 /// `cargo test --release --test corrupt_inputs -- --ignored write_fuzz_seeds`
 #[test]
-#[ignore]
+#[ignore = "writes fuzz/seeds/ (not a check): cargo test --release --test corrupt_inputs write_fuzz_seeds -- --ignored"]
 fn write_fuzz_seeds() {
     let seeds = repo().join("fuzz/seeds");
     let tmp = tempfile::tempdir().unwrap();

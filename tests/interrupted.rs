@@ -17,7 +17,7 @@ fn sam_installed() -> bool {
         .map(|d| d.require_sam().is_ok() && d.require_library().is_ok())
         .unwrap_or(false);
     if !ok {
-        eprintln!("SKIP: SAM models are not installed (scripts/setup installs them)");
+        common::skip("SAM models are not installed (scripts/setup installs them)");
     }
     ok
 }

@@ -359,10 +359,18 @@ fn assert_removal(report: &serde_json::Value, telea: &serde_json::Value, objects
         report["peak_rss_mib"],
         s["hole_psnr"]
     );
+    let who = objects.join("+");
+    common::figure(&format!("removal.{who}.psnr_full_db"), frame, 28.0, true);
     assert!(frame >= 28.0, "full-frame PSNR {frame:.2} < 28");
     for (k, o) in objects.iter().enumerate() {
         let ours = s["hole_psnr"][k][1].as_f64().unwrap();
         let base = telea[*o].as_f64().unwrap();
+        common::figure(
+            &format!("removal.{who}.{o}.psnr_inside_db"),
+            ours,
+            22.0,
+            true,
+        );
         assert!(ours >= 22.0, "{o}: PSNR inside its mask {ours:.2} < 22");
         assert!(
             ours > base,
@@ -386,7 +394,7 @@ fn removal_training() -> (String, String) {
 /// The mug, segmented from one click, removed from the demo scene; then mug and torus together.
 /// Slow (two scene fields): `cargo test --release --test removal -- --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "slow (the removal suite, ~45 min in all): cargo test --release --test removal -- --ignored"]
 fn demo_mug_and_mug_with_torus_removed_match_the_truth() {
     if !common::sam_installed() {
         return;
@@ -462,7 +470,7 @@ const SELF_CHECK_DB: f64 = 22.0;
 /// Slow: `cargo test --release --test removal --
 /// --ignored --nocapture`.
 #[test]
-#[ignore]
+#[ignore = "slow (the removal suite, ~45 min in all): cargo test --release --test removal -- --ignored"]
 fn demo_scene_fields_render_held_out_views() {
     let dir = tempfile::tempdir().unwrap();
     for (layout, views, floor) in [
@@ -510,6 +518,12 @@ fn demo_scene_fields_render_held_out_views() {
             p >= SELF_CHECK_DB || flagged,
             "{layout}: held-out PSNR {p:.2} < {SELF_CHECK_DB} and no self-check fired"
         );
+        common::figure(
+            &format!("scene_field.{layout}.heldout_psnr_db"),
+            p,
+            floor,
+            true,
+        );
         assert!(p >= floor, "{layout}: held-out PSNR {p:.2} < {floor}");
     }
 }
@@ -517,7 +531,7 @@ fn demo_scene_fields_render_held_out_views() {
 /// `objnerf extract` on the forward-facing demo (one click on the mug): the field's box holds the
 /// mug's true box, and held-out PSNR inside its true mask >= 26 dB. Slow (ignored).
 #[test]
-#[ignore]
+#[ignore = "slow (the removal suite, ~45 min in all): cargo test --release --test removal -- --ignored"]
 fn forward_facing_extract_holds_the_mug() {
     if !common::sam_installed() {
         return;
@@ -580,6 +594,8 @@ fn forward_facing_extract_holds_the_mug() {
         "held-out PSNR inside the mug's true mask: {inside:.2} dB over the scene without it \
          ({on_white:.2} on white); within 4 px outside the mask {ring:.2} dB"
     );
+    common::figure("forward_extract.mug.inside_psnr_db", inside, 26.0, true);
+    common::figure("forward_extract.mug.ring_psnr_db", ring, 26.0, true);
     assert!(
         inside >= 26.0,
         "held-out PSNR inside the mug {inside:.2} < 26"

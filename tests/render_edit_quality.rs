@@ -145,7 +145,7 @@ fn score(
 /// Issue 16's edits (a)-(e) of the demo scene on a 24-frame orbit against the exact truth:
 /// full-frame PSNR >= 26 dB and >= 24 dB inside the edited object's true mask.
 #[test]
-#[ignore]
+#[ignore = "slow (trains the demo fields): cargo test --release --test render_edit_quality -- --ignored"]
 fn demo_edits_against_exact_truth() {
     let f = fields();
     let (mug, torus) = (s(&f.mug), s(&f.torus));
@@ -190,6 +190,18 @@ fn demo_edits_against_exact_truth() {
         let (full, masked, worst) = score(&work, &f.background, ORBIT_FRAMES, objects, &edited);
         eprintln!(
             "{name}: full frame {full:.2} dB (worst frame {worst:.2}), inside the edited object's true mask {masked:.2} dB"
+        );
+        common::figure(
+            &format!("render_edit.{name}.full_frame_psnr_db"),
+            full,
+            26.0,
+            true,
+        );
+        common::figure(
+            &format!("render_edit.{name}.inside_psnr_db"),
+            masked,
+            24.0,
+            true,
         );
         if full < 26.0 || masked < 24.0 {
             failed.push(name);
@@ -236,7 +248,7 @@ fn depth_exr(dir: &Path, k: usize) -> Vec<f32> {
 /// depth (the ray tracer's surface, with the mug and the torus where the edit keeps them), i.e.
 /// lego as the composite should show it in front of and behind the scene's true geometry.
 #[test]
-#[ignore]
+#[ignore = "slow (trains the demo fields): cargo test --release --test render_edit_quality -- --ignored"]
 fn lego_inserted_into_the_demo_scene() {
     let Some(lego) = common::shared_data("lego") else {
         return;
@@ -342,6 +354,12 @@ fn lego_inserted_into_the_demo_scene() {
         ious.iter().sum::<f64>() / ORBIT_FRAMES as f64,
         ours.display()
     );
+    common::figure(
+        "render_edit.lego_inserted.worst_index_iou",
+        worst,
+        0.9,
+        true,
+    );
     assert!(worst >= 0.9, "IoU per frame: {ious:.3?}");
 }
 
@@ -350,10 +368,10 @@ fn lego_inserted_into_the_demo_scene() {
 /// background along an 8-frame orbit at 320x240, scored against `demo-scene --edit`'s exact
 /// truth: >= 28 dB full frame (issue 53; 25.87 dB when it was filed). Needs the SAM models.
 #[test]
-#[ignore]
+#[ignore = "slow (~10 min; its figure needs an idle machine): cargo test --release --test render_edit_quality the_users_path -- --ignored"]
 fn the_users_path_on_the_demo() {
     if !common::sam_installed() {
-        eprintln!("SKIP: the SAM models are not installed (objnerf models install)");
+        common::skip("the SAM models are not installed (objnerf models install)");
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -404,5 +422,6 @@ fn the_users_path_on_the_demo() {
         "the user's path: full frame {full:.2} dB (worst frame {worst:.2}), inside the moved mug's true mask {masked:.2} dB; frames in {}",
         work.display()
     );
+    common::figure("users_path.full_frame_psnr_db", full, 28.0, true);
     assert!(full >= 28.0, "full frame {full:.2} dB < 28");
 }

@@ -6,7 +6,7 @@ mod common;
 
 use image::GrayImage;
 use objnerf::models::{install, InstallOptions, ModelsDir};
-use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
+use objnerf::sam::{Precision, Prompts, Segmenter, SegmenterOptions};
 use objnerf::scene::io::read_rgb;
 use objnerf::segment::distance;
 use objnerf::Error;
@@ -22,14 +22,15 @@ fn models() -> Option<ModelsDir> {
     let r = (|| {
         let onnx = common::shared_model("mobile_sam")?;
         let dir = ModelsDir::from_env().ok()?;
-        if dir.require_library().is_err() || dir.require_sam().is_err() {
+        let int8 = dir.require_sam_at(Precision::Int8);
+        if dir.require_library().is_err() || dir.require_sam().is_err() || int8.is_err() {
             let opts = InstallOptions {
                 onnx_dir: Some(onnx),
                 from: None,
                 skip_checkpoint: true,
             };
             if let Err(e) = install(&dir, &opts) {
-                eprintln!("SKIP: ONNX Runtime / MobileSAM not installed and `objnerf models install` failed here: {e}");
+                common::skip(&format!("ONNX Runtime / MobileSAM not installed and `objnerf models install` failed here: {e}"));
                 return None;
             }
         }
@@ -243,7 +244,10 @@ fn a_missing_library_or_model_is_an_error_naming_the_install_command() {
     let tmp = tempfile::tempdir().unwrap();
     let empty = ModelsDir::at(tmp.path());
     for e in [
-        empty.segmenter(1).err().expect("no library"),
+        empty
+            .segmenter(1, Precision::Fp32)
+            .err()
+            .expect("no library"),
         empty.require_sam().expect_err("no models"),
         Segmenter::from_files(
             &tmp.path().join("libonnxruntime.so.1.31.1"),

@@ -34,7 +34,7 @@ fn models() -> Option<(ModelsDir, PathBuf)> {
         let ckpt_ok = sha256_file(&ckpt).is_ok_and(|h| h == CHECKPOINT_SHA256);
         if dir.require_library().is_err() || !ckpt_ok {
             if let Err(e) = install(&dir, &InstallOptions::default()) {
-                eprintln!("SKIP: ONNX Runtime / mobile_sam.pt not installed and `objnerf models install` failed here: {e}");
+                common::skip(&format!("ONNX Runtime / mobile_sam.pt not installed and `objnerf models install` failed here: {e}"));
                 return None;
             }
         }
@@ -124,12 +124,7 @@ fn converted_models_match_the_reference_export() {
     let tmp = tempfile::tempdir().unwrap();
     let ours_dir = tmp.path().join("ours");
     let (dir, _) = models().unwrap();
-    convert::write_mobile_sam_onnx(
-        &dir.checkpoint(),
-        &ours_dir.join("encoder.onnx"),
-        &ours_dir.join("decoder.onnx"),
-    )
-    .unwrap();
+    convert::write_mobile_sam_onnx(&dir.checkpoint(), &ours_dir).unwrap();
     let ours = segmenter(&lib, &ours_dir);
     let refs = segmenter(&lib, &reference);
     let (mut worst_max, mut worst_mean, mut worst_iou, mut worst_e2e) = (0f32, 0f64, 1f64, 1f64);
@@ -187,6 +182,11 @@ fn converted_models_match_the_reference_export() {
     );
 }
 
+/// The int8 encoder's bytes (issue 58). `models install` checks the installed file against the sum
+/// it recorded when writing it; this pins what the converter writes.
+const CONVERTED_ENCODER_INT8_SHA256: &str =
+    "39621c284e0dafdd3d65f4d6537e25d8c22b24012e83ea222dee8173f3ea4e74";
+
 #[test]
 fn the_converted_files_are_the_pinned_bytes() {
     let Some((dir, _)) = models() else {
@@ -204,6 +204,7 @@ fn the_converted_files_are_the_pinned_bytes() {
     // embedding cache key). A change to the graphs must update them in models.rs.
     assert_eq!(sha(&m.encoder), CONVERTED_ENCODER_SHA256);
     assert_eq!(sha(&m.decoder), CONVERTED_DECODER_SHA256);
+    assert_eq!(sha(&m.encoder_int8), CONVERTED_ENCODER_INT8_SHA256);
 }
 
 /// `objnerf models convert` on `ckpt`: its stderr, after checking it failed cleanly and wrote
@@ -320,6 +321,10 @@ fn models_install_into_an_empty_home_then_segment_a_demo_view() {
     assert_eq!(action("MobileSAM checkpoint").as_deref(), Some("installed"));
     assert_eq!(action("MobileSAM encoder").as_deref(), Some("converted"));
     assert_eq!(action("MobileSAM decoder").as_deref(), Some("converted"));
+    assert_eq!(
+        action("MobileSAM encoder (int8)").as_deref(),
+        Some("converted")
+    );
     let md = ModelsDir::at(&home);
     assert!(
         md.list().iter().all(|e| e.status == "ok"),

@@ -4,7 +4,7 @@ mod common;
 
 use objnerf::demo::{read_truth, write_demo_scene, DemoOptions};
 use objnerf::models::ModelsDir;
-use objnerf::sam::Segmenter;
+use objnerf::sam::{Precision, Segmenter};
 use objnerf::segment::evaluate::{alpha_truth, view_ious};
 use objnerf::segment::propagate::{projection_baseline, propagate_objects};
 use objnerf::segment::{
@@ -19,9 +19,7 @@ use objnerf::Scene;
 fn models() -> Option<ModelsDir> {
     let dir = ModelsDir::from_env().ok()?;
     if dir.require_sam().is_err() || dir.require_library().is_err() {
-        eprintln!(
-            "SKIP: SAM models are not installed (scripts/setup runs `objnerf models install`)"
-        );
+        common::skip("SAM models are not installed (scripts/setup runs `objnerf models install`)");
         return None;
     }
     Some(dir)
@@ -136,7 +134,7 @@ fn run_demo(models: &ModelsDir) -> (Vec<(String, Scores, Scores)>, Counts) {
         })
         .collect();
     let opts = PropagationOptions::default();
-    let seg = models.segmenter(0).unwrap();
+    let seg = models.segmenter(0, Precision::Fp32).unwrap();
     let (report, objects) = segment_scene(
         &scene,
         &prompts,
@@ -291,7 +289,7 @@ fn lego_from_one_click_matches_alpha() {
     let prompt = click(&scene, "lego", "r_0", 397.5, 492.5);
     let dir = tempfile::tempdir().unwrap();
     let opts = PropagationOptions::default();
-    let seg = models.segmenter(0).unwrap();
+    let seg = models.segmenter(0, Precision::Fp32).unwrap();
     let (_, objects) = segment_scene(
         &scene,
         &[prompt],

@@ -10,7 +10,7 @@ fn have_colmap() -> bool {
     let ok = objnerf::scene::sfm::colmap_program().is_ok();
     if !ok {
         // CI installs it (scripts/setup); a developer without it sees why this is skipped.
-        eprintln!("SKIP: colmap is not installed (scripts/setup installs it)");
+        common::skip("colmap is not installed (scripts/setup installs it)");
     }
     ok
 }

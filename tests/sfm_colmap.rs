@@ -109,7 +109,7 @@ fn mean_epipolar_error(db: &rusqlite::Connection) -> (usize, f64) {
 #[test]
 fn colmap_3_13_option_names_and_the_database_kept_for_its_gui() {
     let Ok(real) = objnerf::scene::sfm::colmap_program() else {
-        eprintln!("SKIP: colmap is not installed (scripts/setup installs it)");
+        common::skip("colmap is not installed (scripts/setup installs it)");
         return;
     };
     let dir = tempfile::tempdir().unwrap();

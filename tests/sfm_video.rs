@@ -16,7 +16,9 @@ fn have(program: &str, why: &str) -> bool {
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
-        eprintln!("SKIP: {program} is not installed ({why}; scripts/setup installs it)");
+        common::skip(&format!(
+            "{program} is not installed ({why}; scripts/setup installs it)"
+        ));
     }
     ok
 }
@@ -147,7 +149,7 @@ fn the_sharp_frame_of_each_window_is_taken() {
 #[ignore = "COLMAP on 24 frames: about 90 s on 2 cores"]
 fn phone_style_video_to_a_registered_model_from_its_sharp_frames() {
     if !have("ffmpeg", "it decodes videos") || objnerf::scene::sfm::colmap_program().is_err() {
-        eprintln!("SKIP: needs ffmpeg and colmap (scripts/setup installs them)");
+        common::skip("needs ffmpeg and colmap (scripts/setup installs them)");
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -272,7 +274,7 @@ fn videos_ffmpeg_cannot_use_are_refused_by_name() {
     refused(&audio, "no video stream");
     if objnerf::scene::sfm::colmap_program().is_err() {
         // Frames are counted once COLMAP is found and the output claimed.
-        eprintln!("SKIP: the frame counts need colmap (scripts/setup installs it)");
+        common::skip("the frame counts need colmap (scripts/setup installs it)");
         return;
     }
     // A video stream without a frame.

@@ -13,7 +13,7 @@ fn quick_stability_suite_has_no_silent_failure() {
         .map(|d| d.require_sam().is_ok() && d.require_library().is_ok())
         .unwrap_or(false);
     if !ok {
-        eprintln!("SKIP: SAM models are not installed (scripts/setup installs them)");
+        common::skip("SAM models are not installed (scripts/setup installs them)");
         return;
     }
     let dir = tempfile::tempdir().unwrap();

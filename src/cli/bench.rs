@@ -3,7 +3,6 @@
 use crate::cli::progress_bars::Bars;
 use clap::{Args, Subcommand};
 use objnerf::bench::stability::{run_suite, StabilityOptions, Verdict};
-use objnerf::models::ModelsDir;
 use objnerf::Result;
 use std::path::PathBuf;
 
@@ -44,6 +43,8 @@ pub struct StabilityCmd {
     /// Run only the cases whose id contains this (e.g. pose, click_inside).
     #[arg(long)]
     only: Option<String>,
+    #[command(flatten)]
+    sam: super::models::SamPrecisionArg,
 }
 
 impl StabilityCmd {
@@ -56,7 +57,7 @@ impl StabilityCmd {
             lego: self.lego,
             only: self.only,
         };
-        let seg = ModelsDir::from_env()?.segmenter(0)?;
+        let seg = self.sam.segmenter()?;
         let command: Vec<String> = std::env::args().collect();
         let r = run_suite(&opts, &seg, &command.join(" "), &Bars::default())?;
         for c in &r.cases {

@@ -7,6 +7,7 @@ use objnerf::models::{self, ModelsDir};
 use objnerf::sam::convert;
 use objnerf::sam::prompt::{parse_box, parse_point};
 use objnerf::sam::view::{segment_view, SegmentViewArgs};
+use objnerf::sam::{Precision, Segmenter};
 use objnerf::util::digest::sha256_file;
 use objnerf::{Error, Result};
 use std::path::PathBuf;
@@ -30,8 +31,8 @@ pub enum ModelsCmd {
         #[arg(long)]
         json: bool,
     },
-    /// Write encoder.onnx and decoder.onnx from a MobileSAM checkpoint (what `install` does
-    /// when no --onnx-dir is given).
+    /// Write encoder.onnx, decoder.onnx and encoder_int8.onnx from a MobileSAM checkpoint (what
+    /// `install` does when no --onnx-dir is given).
     Convert {
         /// The official mobile_sam.pt (checked by sha256).
         #[arg(long)]
@@ -79,9 +80,7 @@ impl ModelsCmd {
                 }
             }
             ModelsCmd::Convert { checkpoint, out } => {
-                let (enc, dec) = (out.join("encoder.onnx"), out.join("decoder.onnx"));
-                convert::write_mobile_sam_onnx(&checkpoint, &enc, &dec)?;
-                for p in [&enc, &dec] {
+                for p in &convert::write_mobile_sam_onnx(&checkpoint, &out)? {
                     println!("{}  {}", sha256_file(p)?, p.display());
                 }
             }
@@ -111,6 +110,22 @@ impl ModelsCmd {
     }
 }
 
+/// Which MobileSAM encoder a command runs (shared by every command that segments).
+#[derive(Args, Debug, Clone, Copy)]
+pub struct SamPrecisionArg {
+    /// MobileSAM's encoder: fp32 (the reference graph) or int8 (quantised Linear layers, fused
+    /// attention: about 0.75 x the time; examples/results/bench_sam.md).
+    #[arg(long, default_value_t = Precision::default(), value_parser = |s: &str| Precision::parse(s))]
+    pub sam_precision: Precision,
+}
+
+impl SamPrecisionArg {
+    /// SAM from the installed models, on all cores.
+    pub fn segmenter(&self) -> Result<Segmenter> {
+        ModelsDir::from_env()?.segmenter(0, self.sam_precision)
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct SegmentViewCmd {
     pub image: PathBuf,
@@ -126,6 +141,8 @@ pub struct SegmentViewCmd {
     /// ONNX Runtime threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    #[command(flatten)]
+    pub sam: SamPrecisionArg,
     /// Print score and timings as JSON.
     #[arg(long)]
     pub json: bool,
@@ -145,7 +162,8 @@ impl SegmentViewCmd {
             threads: self.threads,
         };
         let dir = ModelsDir::from_env()?;
-        let r = segment_view(&args, |threads| dir.segmenter(threads))?;
+        let precision = self.sam.sam_precision;
+        let r = segment_view(&args, |threads| dir.segmenter(threads, precision))?;
         if self.json {
             print_json(&r);
         } else {

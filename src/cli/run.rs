@@ -8,7 +8,6 @@ use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
 use objnerf::field::holdout::HoldOut;
 use objnerf::mesh::from_field::FieldMeshOptions;
-use objnerf::models::ModelsDir;
 use objnerf::pipeline::demo::{prepare_demo, run_demo};
 use objnerf::pipeline::{extract, ExtractOptions, ExtractReport};
 use objnerf::render::TurntableOptions;
@@ -69,6 +68,8 @@ pub struct ExtractCmd {
     /// Print report.json to stdout.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub sam: super::models::SamPrecisionArg,
 }
 
 impl ExtractCmd {
@@ -99,7 +100,7 @@ impl ExtractCmd {
         let scene = Scene::load(&self.clicks.scene)?;
         let prompts = prompts_in_order(m, &scene)?;
         check_request(&scene, &prompts)?;
-        let seg = ModelsDir::from_env()?.segmenter(0)?;
+        let seg = self.sam.segmenter()?;
         let report = extract(
             &scene,
             &prompts,
@@ -197,6 +198,8 @@ pub struct DemoCmd {
     /// has enough views (0: SH always; see `objnerf train --help`).
     #[arg(long, default_value_t = objnerf::field::SetupConfig::default().net_features)]
     pub colour_net: usize,
+    #[command(flatten)]
+    pub sam: super::models::SamPrecisionArg,
 }
 
 impl DemoCmd {
@@ -223,7 +226,7 @@ impl DemoCmd {
             "extracting '{}' from one click at ({:.1}, {:.1}) in {}",
             self.object, click[0], click[1], setup.truth.view
         );
-        let seg = ModelsDir::from_env()?.segmenter(0)?;
+        let seg = self.sam.segmenter()?;
         let job = run_demo(&setup, &self.out, &opts, &seg, &Bars::default())?;
         print_summary(&job.report);
         let t = &job.truth;

@@ -3,7 +3,6 @@
 use super::{print_json, print_warnings};
 use crate::cli::progress_bars::Bars;
 use clap::{ArgMatches, Args};
-use objnerf::models::ModelsDir;
 use objnerf::sam::prompt::{parse_box, parse_point};
 use objnerf::segment::PropagationOptions;
 use objnerf::segment::{check_request, segment_scene, ObjectPrompt, PointPrompt};
@@ -135,6 +134,8 @@ pub struct SegmentCmd {
     /// Print report.json to stdout too.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub sam: super::models::SamPrecisionArg,
 }
 
 impl SegmentCmd {
@@ -147,7 +148,7 @@ impl SegmentCmd {
             obstruction_coverage: self.obstruction_coverage,
             ..Default::default()
         };
-        let seg = ModelsDir::from_env()?.segmenter(0)?;
+        let seg = self.sam.segmenter()?;
         let (report, _) = segment_scene(
             &scene,
             &prompts,

@@ -20,13 +20,11 @@ use serde::Serialize;
 /// training views, not with a fixed figure, keeps image noise and fine texture (which lower
 /// both alike) from reading as failure.
 pub const MAX_HELDOUT_GAP_DB: f64 = 4.0;
-/// ... unless the held-out PSNR is this high anyway: fitting the training views better than
-/// new ones is what any field does from few views, and a field that still scores this on new
-/// views is a usable one (the stability suite's truth floor is 16 dB on the same measure).
-pub const GAP_CEILING_DB: f64 = 17.0;
-/// Held-out PSNR under this is a wrong object whatever the training views score (a field on
-/// white scores about 10 dB with nothing in it).
-pub const MIN_HELDOUT_PSNR: f64 = 13.0;
+/// Held-out PSNR under this: the field does not reproduce the object from a new viewpoint,
+/// whatever the training views score. A good demo field scores 28-34 dB there; 20 dB is a
+/// visibly blurred or misplaced object (misregistered poses, too few views). (Restored: commit
+/// 9084cc6 lowered it to 13 in the change that made cases pass, see CONTRIBUTING.md.)
+pub const MIN_HELDOUT_PSNR: f64 = 20.0;
 /// Opacity outside the held-out views' masks (grown by [`OUTSIDE_MARGIN_PX`]), as a fraction of
 /// the masks' area, above this: the field holds floaters that the training views' masks did
 /// not carve (a few percent come from edges alone).
@@ -175,7 +173,7 @@ pub fn check_field(
                     "on views kept out of training ({names}) the field scores {p:.1} dB around the object: it does not reproduce the object (inaccurate poses or masks, too few views)"
                 ),
             ));
-        } else if let Some(g) = gap.filter(|g| *g > MAX_HELDOUT_GAP_DB && p < GAP_CEILING_DB) {
+        } else if let Some(g) = gap.filter(|g| *g > MAX_HELDOUT_GAP_DB) {
             out.push(warn(
                 "heldout_gap",
                 g,
@@ -249,11 +247,10 @@ mod tests {
     fn each_field_fault_is_named() {
         let good = train(28.0, 1000, "steps");
         assert!(codes(&good, &held(20.0, 22.0, 0.02)).is_empty());
-        // Noise lowers training and held-out views alike: no warning.
-        assert!(codes(&good, &held(15.0, 16.0, 0.02)).is_empty());
-        assert_eq!(codes(&good, &held(14.0, 22.0, 0.02)), ["heldout_gap"]);
-        // Few views: training views fit far better, but new views are still good.
-        assert!(codes(&good, &held(18.5, 27.0, 0.02)).is_empty());
+        // Noise lowers training and held-out views alike: no gap, but low is low.
+        assert!(codes(&good, &held(21.0, 22.0, 0.02)).is_empty());
+        assert_eq!(codes(&good, &held(15.0, 16.0, 0.02)), ["heldout_psnr_low"]);
+        assert_eq!(codes(&good, &held(22.0, 27.0, 0.02)), ["heldout_gap"]);
         assert_eq!(codes(&good, &held(10.0, 11.0, 0.02)), ["heldout_psnr_low"]);
         assert_eq!(codes(&good, &held(20.0, 22.0, 0.5)), ["floaters"]);
         assert_eq!(

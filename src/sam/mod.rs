@@ -28,3 +28,43 @@ pub use segmenter::{EmbedInfo, Segmenter, SegmenterOptions};
 
 /// The command that fixes a missing model or library; every "not installed" error quotes it.
 pub const INSTALL_HINT: &str = "objnerf models install";
+
+/// Which MobileSAM encoder runs. Both are written from the same checkpoint by [`convert`]; the
+/// decoder is the same for both.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// The reference graph: the PyTorch exporter's operators, in float32. The default until the
+    /// converter's int8 file scores as its Python stand-in does (examples/results/bench_sam.md).
+    #[default]
+    Fp32,
+    /// Linear layers in int8 and fused attention ([`convert::encoder::Variant::INT8`]): about
+    /// 0.75 x fp32's encoder time here (examples/results/bench_sam.md).
+    Int8,
+}
+
+impl Precision {
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::Fp32 => "fp32",
+            Precision::Int8 => "int8",
+        }
+    }
+
+    /// `fp32` or `int8`.
+    pub fn parse(s: &str) -> crate::error::Result<Self> {
+        match s {
+            "fp32" => Ok(Precision::Fp32),
+            "int8" => Ok(Precision::Int8),
+            _ => Err(crate::error::Error::invalid(format!(
+                "unknown SAM precision {s:?}: use fp32 or int8"
+            ))),
+        }
+    }
+}
+
+impl std::fmt::Display for Precision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}

@@ -8,6 +8,65 @@ pub fn repo_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// Print why a test returns early without checking anything, and record it in the file
+/// `$OBJNERF_SKIP_LOG` names (scripts/test lists them at the end, so CI's log shows every test
+/// that skipped and why).
+pub fn skip(reason: &str) {
+    eprintln!("SKIP: {reason}");
+    let Some(log) = std::env::var_os("OBJNERF_SKIP_LOG") else {
+        return;
+    };
+    let test = std::thread::current().name().unwrap_or("?").to_string();
+    let bin = std::env::args()
+        .next()
+        .map(|a| {
+            let stem = Path::new(&a)
+                .file_stem()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .to_string();
+            // cargo names test binaries `<name>-<hash>`.
+            stem.rsplit_once('-')
+                .map_or(stem.clone(), |(n, _)| n.to_string())
+        })
+        .unwrap_or_default();
+    append_line(&log, &format!("{bin}::{test}: {reason}"));
+}
+
+/// Append one line to a log a script gathers after the tests (best effort: a test never fails
+/// for its log).
+fn append_line(log: &std::ffi::OsStr, line: &str) {
+    use std::io::Write;
+    if let Ok(mut f) = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+    {
+        let _ = writeln!(f, "{line}");
+    }
+}
+
+/// Record a figure a test checks (its value, the floor it is held to, whether it holds) in the
+/// file `$OBJNERF_QUALITY_LOG` names, one JSON object a line: `scripts/quality` gathers them
+/// into `examples/results/quality.json`. `higher`: the figure must be at least the floor (else
+/// at most).
+pub fn figure(id: &str, value: f64, floor: f64, higher: bool) {
+    let Some(log) = std::env::var_os("OBJNERF_QUALITY_LOG") else {
+        return;
+    };
+    let test = std::thread::current().name().unwrap_or("?").to_string();
+    let pass = if higher {
+        value >= floor
+    } else {
+        value <= floor
+    };
+    let line = serde_json::json!({
+        "test": test, "figure": id, "value": value, "floor": floor,
+        "higher_is_better": higher, "pass": pass,
+    });
+    append_line(&log, &line.to_string());
+}
+
 /// `../shared/data/<name>` beside the checkout, or `None` with a printed reason (the test then
 /// returns early: CI always has the data).
 pub fn shared_data(name: &str) -> Option<PathBuf> {
@@ -15,10 +74,10 @@ pub fn shared_data(name: &str) -> Option<PathBuf> {
     if p.exists() {
         Some(p)
     } else {
-        eprintln!(
-            "SKIP: {} is absent (the shared data sits beside the checkout in CI)",
+        skip(&format!(
+            "{} is absent (the shared data sits beside the checkout in CI)",
             p.display()
-        );
+        ));
         None
     }
 }
@@ -29,7 +88,7 @@ pub fn shared_model(name: &str) -> Option<PathBuf> {
     if p.exists() {
         Some(p)
     } else {
-        eprintln!("SKIP: {} is absent", p.display());
+        skip(&format!("{} is absent", p.display()));
         None
     }
 }
@@ -70,7 +129,7 @@ pub fn lego_sfm_model() -> Option<PathBuf> {
     let _one_at_a_time = BUILDING.lock().unwrap_or_else(|e| e.into_inner());
     let lego = shared_data("lego")?;
     if objnerf::scene::sfm::colmap_program().is_err() {
-        eprintln!("SKIP: colmap is not installed (scripts/setup installs it)");
+        skip("colmap is not installed (scripts/setup installs it)");
         return None;
     }
     // Keyed by the binary, so that a model from older code is never reused.
@@ -133,9 +192,7 @@ pub fn sam_installed() -> bool {
         .map(|d| d.require_sam().is_ok() && d.require_library().is_ok())
         .unwrap_or(false);
     if !ok {
-        eprintln!(
-            "SKIP: SAM models are not installed (scripts/setup runs `objnerf models install`)"
-        );
+        skip("SAM models are not installed (scripts/setup runs `objnerf models install`)");
     }
     ok
 }

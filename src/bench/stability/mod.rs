@@ -81,6 +81,8 @@ pub fn run_suite(
             ("miou", score::MIOU_FLOOR),
             ("obstruction_f1", score::F1_FLOOR),
             ("psnr_db", score::PSNR_FLOOR),
+            ("segment_share", score::SEGMENT_SHARE_FLOOR),
+            ("field_share", score::FIELD_SHARE_FLOOR),
             ("chamfer_fraction_of_diagonal", score::CHAMFER_FLOOR),
         ]),
         skipped,

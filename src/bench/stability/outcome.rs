@@ -66,23 +66,52 @@ impl Verdict {
 }
 
 /// One object's verdict from its scores and the warnings about it (or about the whole scene).
-/// A warning about a stage the truth cannot score (lego's mesh: there is no true mesh) counts
-/// neither way: it can be neither confirmed nor called a false alarm.
+/// A stage fails when its scores fall under the floors; a failure is detected only by a warning
+/// about it: one from the failing stage itself or one that speaks of it ([`also_about`]), one
+/// from the capture (the scene stage: poses and views every later stage stands on), or one from
+/// an earlier stage that failed too (its warning is then confirmed, and what follows inherits
+/// the cause). A warning about a later stage, or an unconfirmed one about an earlier stage, does
+/// not count. A warning about a stage the truth cannot score (lego's mesh: there is no true
+/// mesh) counts neither way.
 fn object_verdict(s: &ObjectScores, warnings: &[Warning]) -> Verdict {
-    let bad = s.segment_bad() || s.field_bad() == Some(true);
-    let scored = |stage: Stage| match stage {
-        Stage::Scene | Stage::Segment => true,
-        Stage::Field => s.psnr.is_some() || s.chamfer.is_some(),
-        Stage::Mesh => s.chamfer.is_some(),
+    let failed = |stage: Stage| match stage {
+        Stage::Scene => Some(false),
+        Stage::Segment => Some(s.segment_bad()),
+        Stage::Field => s.field_bad(),
+        Stage::Mesh => s.mesh_bad(),
     };
-    let flagged = warnings
+    let warned: Vec<Stage> = warnings
         .iter()
-        .any(|w| w.object.as_deref().is_none_or(|o| o == s.object) && scored(w.stage));
-    match (bad, flagged) {
-        (false, false) => Verdict::Ok,
-        (false, true) => Verdict::FalseAlarm,
-        (true, true) => Verdict::Detected,
-        (true, false) => Verdict::Silent,
+        .filter(|w| w.object.as_deref().is_none_or(|o| o == s.object))
+        .flat_map(|w| std::iter::once(w.stage).chain(also_about(w.code).iter().copied()))
+        .filter(|st| *st == Stage::Scene || failed(*st).is_some())
+        .collect();
+    let stages = [Stage::Segment, Stage::Field, Stage::Mesh];
+    let failures: Vec<Stage> = stages
+        .into_iter()
+        .filter(|st| failed(*st) == Some(true))
+        .collect();
+    let about = |failure: Stage| {
+        warned.iter().any(|w| {
+            *w == failure || *w == Stage::Scene || (*w < failure && failed(*w) == Some(true))
+        })
+    };
+    match (failures.is_empty(), warned.is_empty()) {
+        (true, true) => Verdict::Ok,
+        (true, false) => Verdict::FalseAlarm,
+        (false, _) if failures.iter().all(|f| about(*f)) => Verdict::Detected,
+        (false, _) => Verdict::Silent,
+    }
+}
+
+/// The later stages a check's warning speaks of besides its own, as its message tells the user
+/// (`docs/self-checks.md`): views from one side only, or too few, leave the field and the mesh
+/// to make up what no view saw; floaters end up as stray pieces of the mesh.
+fn also_about(code: &str) -> &'static [Stage] {
+    match code {
+        "one_sided_views" | "few_views_ok" => &[Stage::Field, Stage::Mesh],
+        "floaters" => &[Stage::Mesh],
+        _ => &[],
     }
 }
 
@@ -195,4 +224,106 @@ pub struct StabilityReport {
     pub skipped: Vec<String>,
     pub summary: Summary,
     pub cases: Vec<CaseResult>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn good() -> ObjectScores {
+        ObjectScores {
+            object: "mug".into(),
+            miou: Some(0.94),
+            segment_success: Some(1.0),
+            obstruction_f1: Some(1.0),
+            psnr: Some(20.0),
+            field_success: Some(1.0),
+            chamfer: Some(0.015),
+            ..Default::default()
+        }
+    }
+
+    fn warn(stage: Stage) -> Warning {
+        Warning::new(stage, "w", 0.0, 0.0, "").about("mug")
+    }
+
+    #[test]
+    fn a_failure_is_detected_only_by_a_warning_about_it() {
+        let ok = good();
+        assert_eq!(object_verdict(&ok, &[]), Verdict::Ok);
+        assert_eq!(
+            object_verdict(&ok, &[warn(Stage::Mesh)]),
+            Verdict::FalseAlarm
+        );
+        // A field under the floor: its own warning or the capture's detects it; a mesh warning
+        // or an unconfirmed one about the masks (which are good) does not.
+        let blurred = ObjectScores {
+            psnr: Some(16.0),
+            ..good()
+        };
+        assert_eq!(
+            object_verdict(&blurred, &[warn(Stage::Field)]),
+            Verdict::Detected
+        );
+        assert_eq!(
+            object_verdict(&blurred, &[warn(Stage::Scene)]),
+            Verdict::Detected
+        );
+        assert_eq!(
+            object_verdict(&blurred, &[warn(Stage::Mesh)]),
+            Verdict::Silent
+        );
+        assert_eq!(
+            object_verdict(&blurred, &[warn(Stage::Segment)]),
+            Verdict::Silent
+        );
+        // Bad masks, and the field they taught: the masks' warning covers both.
+        let spilled = ObjectScores {
+            miou: Some(0.5),
+            psnr: Some(10.0),
+            ..good()
+        };
+        assert_eq!(
+            object_verdict(&spilled, &[warn(Stage::Segment)]),
+            Verdict::Detected
+        );
+        assert_eq!(
+            object_verdict(&spilled, &[warn(Stage::Field)]),
+            Verdict::Silent
+        );
+        // A wrong back of the mesh, told by the views' coverage.
+        let unseen_back = ObjectScores {
+            chamfer: Some(0.05),
+            ..good()
+        };
+        let mut one_sided = warn(Stage::Segment);
+        one_sided.code = "one_sided_views";
+        assert_eq!(
+            object_verdict(&unseen_back, &[one_sided]),
+            Verdict::Detected
+        );
+        assert_eq!(
+            object_verdict(&unseen_back, &[warn(Stage::Segment)]),
+            Verdict::Silent
+        );
+    }
+
+    #[test]
+    fn too_many_bad_views_fail_a_good_mean() {
+        let patchy = ObjectScores {
+            segment_success: Some(0.7),
+            ..good()
+        };
+        assert_eq!(object_verdict(&patchy, &[]), Verdict::Silent);
+        let two_of_six = ObjectScores {
+            field_success: Some(4.0 / 6.0),
+            ..good()
+        };
+        assert_eq!(object_verdict(&two_of_six, &[]), Verdict::Silent);
+        let one_of_six = ObjectScores {
+            field_success: Some(5.0 / 6.0),
+            ..good()
+        };
+        assert_eq!(object_verdict(&one_of_six, &[]), Verdict::Ok);
+    }
 }

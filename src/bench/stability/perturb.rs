@@ -25,7 +25,9 @@ pub enum Perturbation {
         count: usize,
     },
     /// Every camera turned by `degrees` about a random axis and moved by the matching arc
-    /// (degrees in radians times its distance to the scene's centre) in a random direction.
+    /// (degrees in radians times its distance to the scene's centre) in a random direction;
+    /// then the capture is triangulated again with those poses by COLMAP, as `objnerf sfm`
+    /// would in use (`run::retriangulate`).
     PoseNoise {
         degrees: f64,
     },

@@ -74,10 +74,12 @@ pub fn markdown(r: &StabilityReport) -> String {
     );
     let _ = writeln!(
         m,
-        "Floors: mIoU >= {}, obstructed-view F1 >= {}, object PSNR >= {} dB (novel views, over the true mask's box), Chamfer <= {}% of the true box diagonal.\n",
+        "Floors: mIoU >= {} and a good mask (IoU >= {0}) in >= {}% of the views that show the object, obstructed-view F1 >= {}, object PSNR >= {} dB (novel views, over the true mask's box) in the mean and in >= {}% of the views, Chamfer <= {}% of the true box diagonal (`docs/floors.md`). A failure counts as detected only by a warning about it (its stage, the capture, or a failed earlier stage).\n",
         r.floors["miou"],
+        100.0 * r.floors["segment_share"],
         r.floors["obstruction_f1"],
         r.floors["psnr_db"],
+        100.0 * r.floors["field_share"],
         100.0 * r.floors["chamfer_fraction_of_diagonal"]
     );
     let counts: Vec<String> = s.counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
@@ -101,7 +103,7 @@ pub fn markdown(r: &StabilityReport) -> String {
     }
     let _ = writeln!(
         m,
-        "\n| case | group | strength | verdict | mIoU | F1 | PSNR | Chamfer % | warnings | s | CPU s | MiB |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "\n| case | group | strength | verdict | mIoU | bad masks | F1 | PSNR | bad views | Chamfer % | warnings | s | CPU s | MiB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     let none = ObjectScores::default();
     for c in r.cases.iter().filter(|c| is_click(c).is_none()) {
@@ -110,7 +112,7 @@ pub fn markdown(r: &StabilityReport) -> String {
         for (i, o) in c.objects.iter().enumerate().chain(refused) {
             let _ = writeln!(
                 m,
-                "| {}{} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} | {:.0} | {} |",
+                "| {}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} | {:.0} | {} |",
                 c.spec.id,
                 if c.objects.len() > 1 {
                     format!(" ({})", o.object)
@@ -121,8 +123,10 @@ pub fn markdown(r: &StabilityReport) -> String {
                 c.spec.strength,
                 if i == 0 { c.verdict.name() } else { "" },
                 f(o.miou, 3),
+                share(o.segment_failed_views, o.segment_views),
                 f(o.obstruction_f1, 2),
                 f(o.psnr, 1),
+                share(o.field_failed_views, o.psnr_views.len()),
                 f(o.chamfer.map(|x| 100.0 * x), 2),
                 if i == 0 { codes(c) } else { String::new() },
                 c.seconds,
@@ -309,4 +313,13 @@ fn accuracy_chart(cases: &[CaseResult]) -> ChartResult<String> {
         })
         .collect();
     svg((1400, 520), 1, &panels)
+}
+
+/// "k of n": views that fell short of how many were scored.
+fn share(failed: usize, of: usize) -> String {
+    if of == 0 {
+        "-".into()
+    } else {
+        format!("{failed} of {of}")
+    }
 }

@@ -28,7 +28,18 @@ pub const F1_FLOOR: f64 = 0.5;
 /// on) under this is a visibly wrong object. The demo mug scores about 20 dB there with the
 /// suite's step budget (its fine texture is near the grid's resolution; over the whole image
 /// that is 34 dB); a mug smeared by 2 degrees of pose noise or made from 5 views scores 11-13.
-pub const PSNR_FLOOR: f64 = 16.0;
+/// (Restored: commit 9084cc6 lowered it to 16 in the change that made cases pass, see
+/// CONTRIBUTING.md.)
+pub const PSNR_FLOOR: f64 = 18.0;
+/// Of the views that show the object, the share with a good mask (IoU at [`MIOU_FLOOR`]) under
+/// this is a failed segmentation even when the mean holds: one view in ten with a visibly wrong
+/// mask is what a user paging through the contact sheet notices, and each such view teaches the
+/// field a wrong silhouette.
+pub const SEGMENT_SHARE_FLOOR: f64 = 0.9;
+/// Of the novel views scored (at most [`MAX_EVAL_VIEWS`]), the share at [`PSNR_FLOOR`] under
+/// this is a failed field even when the mean holds: one bad view in six can be an unlucky angle,
+/// two are a third of an orbit around the object.
+pub const FIELD_SHARE_FLOOR: f64 = 0.8;
 /// Chamfer distance over the true box diagonal above this is a visibly wrong shape (the demo
 /// objects come out at 1-2%; `tests/extract.rs` holds them to 2% at more steps).
 pub const CHAMFER_FLOOR: f64 = 0.03;
@@ -108,12 +119,16 @@ pub struct ObjectScores {
     pub object: String,
     /// Mean IoU with the truth over the views segmentation marked ok.
     pub miou: Option<f64>,
-    /// Of the views that show the object, the share marked ok with a mask at [`MIOU_FLOOR`].
+    /// Of the views that show the object, the share marked ok with a mask at [`MIOU_FLOOR`],
+    /// how many fell short (the worst views) of how many show it.
     pub segment_success: Option<f64>,
+    pub segment_failed_views: usize,
+    pub segment_views: usize,
     pub obstruction_f1: Option<f64>,
     /// Object PSNR over novel views, and the share of them at [`PSNR_FLOOR`].
     pub psnr: Option<f64>,
     pub field_success: Option<f64>,
+    pub field_failed_views: usize,
     pub psnr_views: Vec<String>,
     /// Chamfer distance over the true box diagonal.
     pub chamfer: Option<f64>,
@@ -123,21 +138,26 @@ pub struct ObjectScores {
 }
 
 impl ObjectScores {
-    /// Whether the masks fall short of the floors.
+    /// Whether the masks fall short of the floors: their mean, the share of good views, or
+    /// which views hide the object.
     pub fn segment_bad(&self) -> bool {
         self.miou.is_none_or(|m| m < MIOU_FLOOR)
+            || self
+                .segment_success
+                .is_some_and(|s| s < SEGMENT_SHARE_FLOOR)
             || self.obstruction_f1.is_some_and(|f| f < F1_FLOOR)
     }
 
-    /// Whether the field or mesh falls short (None: not run).
+    /// Whether the field falls short on novel views, in the mean or in too many of them (None:
+    /// not scored).
     pub fn field_bad(&self) -> Option<bool> {
-        if self.psnr.is_none() && self.chamfer.is_none() {
-            return None;
-        }
-        Some(
-            self.psnr.is_some_and(|p| p < PSNR_FLOOR)
-                || self.chamfer.is_some_and(|c| c > CHAMFER_FLOOR),
-        )
+        self.psnr
+            .map(|p| p < PSNR_FLOOR || self.field_success.is_some_and(|s| s < FIELD_SHARE_FLOOR))
+    }
+
+    /// Whether the mesh falls short (None: no true mesh, or no mesh).
+    pub fn mesh_bad(&self) -> Option<bool> {
+        self.chamfer.map(|c| c > CHAMFER_FLOOR)
     }
 }
 
@@ -185,6 +205,8 @@ pub fn score_masks(truth: &Truth, object: &str, views: &[ScoredView]) -> ObjectS
         object: object.to_string(),
         miou: (!ious.is_empty()).then(|| ious.iter().sum::<f64>() / ious.len() as f64),
         segment_success: (shown > 0).then(|| good as f64 / shown as f64),
+        segment_failed_views: shown - good,
+        segment_views: shown,
         obstruction_f1: (tp + fp + fneg > 0).then(|| 2.0 * tp as f64 / (2 * tp + fp + fneg) as f64),
         ..Default::default()
     }
@@ -231,6 +253,7 @@ pub fn score_field(
     scores.field_success = (!m.view_psnr.is_empty()).then(|| {
         m.view_psnr.iter().filter(|p| **p >= PSNR_FLOOR).count() as f64 / m.view_psnr.len() as f64
     });
+    scores.field_failed_views = m.view_psnr.iter().filter(|p| **p < PSNR_FLOOR).count();
     scores.psnr_views = m.views;
     Ok(())
 }

@@ -4,7 +4,7 @@
 //! `orig_im_size`. Inputs and outputs are those of the reference export; batch 1, any number of
 //! points.
 
-use super::encoder::Weights;
+use super::encoder::{Variant, Weights};
 use super::graph::{Attr, Conv, Dim, Graph};
 use super::onnx_proto::{ModelProto, FLOAT};
 use super::torch::{StateDict, Tensor};
@@ -24,10 +24,12 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
     let pe_w = Weights {
         sd,
         prefix: "prompt_encoder.",
+        variant: Variant::FP32,
     };
     let md = Weights {
         sd,
         prefix: "mask_decoder.",
+        variant: Variant::FP32,
     };
     let n = Dim::Named("num_points");
     let emb = g.input(

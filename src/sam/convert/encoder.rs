@@ -5,6 +5,7 @@
 
 use super::graph::{Attr, Conv, Dim, Graph};
 use super::onnx_proto::{ModelProto, FLOAT};
+use super::quant::linear_int8;
 use super::torch::{StateDict, Tensor};
 use crate::error::Result;
 
@@ -33,11 +34,40 @@ const SAME: Conv = Conv {
 };
 const LN_EPS: f32 = 1e-5;
 
+/// Which encoder graph to write. The reference (all false) has the PyTorch exporter's operators
+/// and is what `encoder.onnx` holds; the others trade exactness for speed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Variant {
+    /// The attention and MLP Linear layers with int8 weights (one scale per output channel) and
+    /// activations quantised per call ([`linear_int8`]).
+    pub int8_linears: bool,
+    /// Each attention's core (scores, bias, softmax, weighted sum over heads) as ONNX Runtime's
+    /// `MultiHeadAttention`, with q, k and v from three Linear layers: no Split and no per-head
+    /// Transposes between them.
+    pub fused_attention: bool,
+}
+
+impl Variant {
+    pub const FP32: Variant = Variant {
+        int8_linears: false,
+        fused_attention: false,
+    };
+    pub const INT8: Variant = Variant {
+        int8_linears: true,
+        fused_attention: true,
+    };
+}
+
 pub fn build(sd: &StateDict) -> Result<ModelProto> {
+    build_variant(sd, Variant::FP32)
+}
+
+pub fn build_variant(sd: &StateDict, variant: Variant) -> Result<ModelProto> {
     let mut g = Graph::new();
     let w = Weights {
         sd,
         prefix: "image_encoder.",
+        variant,
     };
     let image = g.input("image", FLOAT, &[1, 3, 1024, 1024].map(Dim::Fixed));
     let out = g.scope("enc", |g| -> Result<String> {
@@ -121,9 +151,24 @@ pub fn build(sd: &StateDict) -> Result<ModelProto> {
 pub(super) struct Weights<'a> {
     pub sd: &'a StateDict,
     pub prefix: &'a str,
+    pub variant: Variant,
 }
 
 impl Weights<'_> {
+    /// `nn.Linear` named `name` (weight `out x in`) in the variant's precision.
+    fn linear(&self, g: &mut Graph, x: &str, name: &str, out: usize, inp: usize) -> Result<String> {
+        let wt = self.get(&format!("{name}.weight"), &[out, inp])?;
+        let b = self.vec(&format!("{name}.bias"), out)?;
+        Ok(self.linear_of(g, x, name, wt, b))
+    }
+    fn linear_of(&self, g: &mut Graph, x: &str, name: &str, w: &Tensor, b: &Tensor) -> String {
+        if self.variant.int8_linears {
+            linear_int8(g, x, name, w, b)
+        } else {
+            g.linear(x, name, w, b)
+        }
+    }
+
     pub fn get(&self, name: &str, shape: &[usize]) -> Result<&Tensor> {
         self.sd.get(&format!("{}{name}", self.prefix), shape)
     }
@@ -268,19 +313,9 @@ fn tiny_vit_block(g: &mut Graph, w: &Weights, x: &str, name: &str, stage: usize)
             w.vec(&format!("{p}.norm.bias"), c)?,
             LN_EPS,
         );
-        let y = g.linear(
-            &y,
-            &format!("{p}.fc1"),
-            w.get(&format!("{p}.fc1.weight"), &[h, c])?,
-            w.vec(&format!("{p}.fc1.bias"), h)?,
-        );
+        let y = w.linear(g, &y, &format!("{p}.fc1"), h, c)?;
         let y = g.gelu(&y);
-        Ok(g.linear(
-            &y,
-            &format!("{p}.fc2"),
-            w.get(&format!("{p}.fc2.weight"), &[c, h])?,
-            w.vec(&format!("{p}.fc2.bias"), c)?,
-        ))
+        w.linear(g, &y, &format!("{p}.fc2"), c, h)
     })?;
     Ok(g.add(&x, &m))
 }
@@ -305,12 +340,12 @@ fn attention(g: &mut Graph, w: &Weights, x: &str, name: &str, stage: usize) -> R
         w.vec(&format!("{name}.norm.bias"), c)?,
         LN_EPS,
     );
-    let y = g.linear(
-        &y,
-        &format!("{name}.qkv"),
-        w.get(&format!("{name}.qkv.weight"), &[qkv_out, c])?,
-        w.vec(&format!("{name}.qkv.bias"), qkv_out)?,
-    );
+    let bias = relative_bias(w, name, nh, ws)?;
+    if w.variant.fused_attention {
+        let o = fused_attention(g, w, &y, name, c, nh, bias)?;
+        return w.linear(g, &o, &format!("{name}.proj"), c, nh * KEY_DIM);
+    }
+    let y = w.linear(g, &y, &format!("{name}.qkv"), qkv_out, c)?;
     let y = g.reshape(&y, &[windows, n as i64, nh as i64, -1]);
     let split = g.i64s(&[KEY_DIM as i64; 3]);
     let qkv = g.op_n("Split", &[&y, &split], 3, vec![("axis", Attr::Int(3))]);
@@ -320,18 +355,52 @@ fn attention(g: &mut Graph, w: &Weights, x: &str, name: &str, stage: usize) -> R
     let a = g.matmul(&q, &k);
     let scale = g.scalar((KEY_DIM as f32).powf(-0.5));
     let a = g.mul(&a, &scale);
-    let bias = relative_bias(w, name, nh, ws)?;
     let bias = g.weight(&format!("{name}.ab"), &bias);
     let a = g.add(&a, &bias);
     let a = g.op("Softmax", &[&a], vec![("axis", Attr::Int(-1))]);
     let o = g.matmul(&a, &v);
     let o = g.transpose(&o, &[0, 2, 1, 3]);
     let o = g.reshape(&o, &[windows, n as i64, (nh * KEY_DIM) as i64]);
-    Ok(g.linear(
-        &o,
-        &format!("{name}.proj"),
-        w.get(&format!("{name}.proj.weight"), &[c, nh * KEY_DIM])?,
-        w.vec(&format!("{name}.proj.bias"), c)?,
+    w.linear(g, &o, &format!("{name}.proj"), c, nh * KEY_DIM)
+}
+
+/// The attention's core as one `MultiHeadAttention` node on (windows, N, heads x 32) q, k and v,
+/// each from its own Linear layer: TinyViT's qkv weight holds, head by head, 32 rows of q, 32 of
+/// k and 32 of v, so its rows are regrouped here into three weights. The operator's default scale
+/// is TinyViT's (32^-0.5); the relative bias (1, heads, N, N) broadcasts over the windows.
+fn fused_attention(
+    g: &mut Graph,
+    w: &Weights,
+    y: &str,
+    name: &str,
+    c: usize,
+    nh: usize,
+    bias: Tensor,
+) -> Result<String> {
+    let qkv_w = w.get(&format!("{name}.qkv.weight"), &[nh * 3 * KEY_DIM, c])?;
+    let qkv_b = w.vec(&format!("{name}.qkv.bias"), nh * 3 * KEY_DIM)?;
+    let mut parts = Vec::new();
+    for (j, part) in ["q", "k", "v"].iter().enumerate() {
+        let rows: Vec<usize> = (0..nh)
+            .flat_map(|h| (0..KEY_DIM).map(move |r| h * 3 * KEY_DIM + j * KEY_DIM + r))
+            .collect();
+        let wd = rows
+            .iter()
+            .flat_map(|&r| qkv_w.data[r * c..(r + 1) * c].iter().copied())
+            .collect();
+        let bd = rows.iter().map(|&r| qkv_b.data[r]).collect();
+        let (wt, b) = (
+            Tensor::new(vec![rows.len(), c], wd),
+            Tensor::new(vec![rows.len()], bd),
+        );
+        parts.push(w.linear_of(g, y, &format!("{name}.{part}"), &wt, &b));
+    }
+    let n = bias.shape[1];
+    let bias = g.weight(&format!("{name}.ab"), &bias.reshape(&[1, nh, n, n]));
+    Ok(g.op_ms(
+        "MultiHeadAttention",
+        &[&parts[0], &parts[1], &parts[2], "", "", &bias],
+        vec![("num_heads", Attr::Int(nh as i64))],
     ))
 }
 

@@ -10,6 +10,8 @@ use std::collections::HashMap;
 /// The opset and IR version of the reference export.
 pub const OPSET: i64 = 17;
 pub const IR_VERSION: i64 = 8;
+/// ONNX Runtime's own operators (e.g. `DynamicQuantizeMatMul`, `MultiHeadAttention`).
+pub const MS_DOMAIN: &str = "com.microsoft";
 
 /// An attribute value.
 pub enum Attr {
@@ -45,6 +47,8 @@ pub struct Graph {
     /// Node counts per scope and operator, for unique names.
     counts: HashMap<String, usize>,
     scope: String,
+    /// Whether any node is one of ONNX Runtime's own operators (then the model imports its domain).
+    uses_ms_domain: bool,
 }
 
 impl Graph {
@@ -75,6 +79,7 @@ impl Graph {
                 name: format!("{}/Identity_{name}", self.scope),
                 op_type: "Identity".into(),
                 attribute: vec![],
+                domain: String::new(),
             });
         }
         self.outputs.push(value_info(name, elem, dims));
@@ -87,6 +92,17 @@ impl Graph {
             data_type: FLOAT,
             name: name.into(),
             raw_data: t.data.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        });
+        name.to_string()
+    }
+
+    /// A named int8 initializer (a quantised weight).
+    pub fn weight_i8(&mut self, name: &str, dims: &[usize], vals: &[i8]) -> String {
+        self.inits.push(TensorProto {
+            dims: dims.iter().map(|&d| d as i64).collect(),
+            data_type: INT8,
+            name: name.into(),
+            raw_data: vals.iter().map(|&v| v as u8).collect(),
         });
         name.to_string()
     }
@@ -132,6 +148,16 @@ impl Graph {
         self.op_n(op, inputs, 1, attrs).remove(0)
     }
 
+    /// One node of ONNX Runtime's own operators ([`MS_DOMAIN`]) with one output.
+    pub fn op_ms(&mut self, op: &str, inputs: &[&str], attrs: Vec<(&str, Attr)>) -> String {
+        let out = self.op_n(op, inputs, 1, attrs).remove(0);
+        if let Some(node) = self.nodes.last_mut() {
+            node.domain = MS_DOMAIN.into();
+        }
+        self.uses_ms_domain = true;
+        out
+    }
+
     /// One node with `n` outputs.
     pub fn op_n(
         &mut self,
@@ -151,17 +177,25 @@ impl Graph {
             name,
             op_type: op.into(),
             attribute: attrs.into_iter().map(|(n, a)| attribute(n, a)).collect(),
+            domain: String::new(),
         });
         outputs
     }
 
     pub fn into_model(self, name: &str, doc: &str) -> ModelProto {
+        let mut opset_import = vec![OperatorSetIdProto {
+            domain: String::new(),
+            version: OPSET,
+        }];
+        if self.uses_ms_domain {
+            opset_import.push(OperatorSetIdProto {
+                domain: MS_DOMAIN.into(),
+                version: 1,
+            });
+        }
         ModelProto {
             ir_version: IR_VERSION,
-            opset_import: vec![OperatorSetIdProto {
-                domain: String::new(),
-                version: OPSET,
-            }],
+            opset_import,
             producer_name: "objnerf".into(),
             producer_version: env!("CARGO_PKG_VERSION").into(),
             doc_string: doc.into(),

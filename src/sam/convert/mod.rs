@@ -12,6 +12,7 @@ pub mod encoder;
 pub mod graph;
 pub mod onnx_proto;
 pub mod pickle;
+pub mod quant;
 pub mod torch;
 
 use crate::error::{Error, Result};
@@ -24,30 +25,40 @@ use std::path::Path;
 pub const CHECKPOINT_SHA256: &str =
     "6dbb90523a35330fedd7f1d3dfc66f995213d81b29a5ca8108dbcdd4e37d6c2f";
 
-/// The two serialised models.
+/// The serialised models.
 pub struct SamOnnx {
     pub encoder: Vec<u8>,
     pub decoder: Vec<u8>,
+    /// The int8 encoder ([`encoder::Variant::INT8`]).
+    pub encoder_int8: Vec<u8>,
 }
 
-/// Check that `checkpoint` is the official MobileSAM file (by sha256), then build both models.
+/// Check that `checkpoint` is the official MobileSAM file (by sha256), then build the models.
 pub fn mobile_sam_onnx(checkpoint: &Path) -> Result<SamOnnx> {
     verify_checkpoint(checkpoint)?;
     let sd = torch::StateDict::load(checkpoint)?;
     Ok(SamOnnx {
         encoder: encoder::build(&sd)?.encode_to_vec(),
         decoder: decoder::build(&sd)?.encode_to_vec(),
+        encoder_int8: encoder::build_variant(&sd, encoder::Variant::INT8)?.encode_to_vec(),
     })
 }
 
-/// [`mobile_sam_onnx`], written atomically to the two paths.
-pub fn write_mobile_sam_onnx(checkpoint: &Path, encoder: &Path, decoder: &Path) -> Result<()> {
+/// The file names [`write_mobile_sam_onnx`] writes in its folder (as in the models directory).
+pub const ENCODER_FILE: &str = "encoder.onnx";
+pub const DECODER_FILE: &str = "decoder.onnx";
+pub const ENCODER_INT8_FILE: &str = "encoder_int8.onnx";
+
+/// [`mobile_sam_onnx`], written atomically into `out` as [`ENCODER_FILE`], [`DECODER_FILE`] and
+/// [`ENCODER_INT8_FILE`]; returns their paths.
+pub fn write_mobile_sam_onnx(checkpoint: &Path, out: &Path) -> Result<[std::path::PathBuf; 3]> {
     let m = mobile_sam_onnx(checkpoint)?;
-    for (path, bytes) in [(encoder, &m.encoder), (decoder, &m.decoder)] {
+    let paths = [ENCODER_FILE, DECODER_FILE, ENCODER_INT8_FILE].map(|f| out.join(f));
+    for (path, bytes) in paths.iter().zip([&m.encoder, &m.decoder, &m.encoder_int8]) {
         crate::util::atomic::write_bytes_atomic(path, bytes)?;
         make_readable(path)?;
     }
-    Ok(())
+    Ok(paths)
 }
 
 /// The graphs are written for this one checkpoint: anything else (a truncated download, another

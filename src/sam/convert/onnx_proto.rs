@@ -4,6 +4,7 @@
 
 /// `TensorProto.DataType` values used here.
 pub const FLOAT: i32 = 1;
+pub const INT8: i32 = 3;
 pub const INT64: i32 = 7;
 
 /// `AttributeProto.AttributeType` values used here.
@@ -62,6 +63,10 @@ pub struct NodeProto {
     pub op_type: String,
     #[prost(message, repeated, tag = "5")]
     pub attribute: Vec<AttributeProto>,
+    /// Empty for the standard operators (and then not written at all, so graphs of standard
+    /// operators only are byte for byte what they were before this field existed).
+    #[prost(string, tag = "7")]
+    pub domain: String,
 }
 
 #[derive(Clone, PartialEq, prost::Message)]
