@@ -140,7 +140,10 @@ impl Gpu {
         device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("march.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("march.wgsl").into()),
+            // One module from two files (WGSL has no includes): the march and the colour.
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(include_str!("march.wgsl"), include_str!("colour.wgsl")).into(),
+            ),
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("march"),

@@ -57,7 +57,8 @@ struct RayOut {
     // sum w t over the composited samples (the single-field renderer's depth).
     depth: f32,
     index: u32,
-    pad: u32,
+    // 1: the device ended the march's loops early (the result is wrong).
+    cut: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -88,12 +89,16 @@ var<private> weights: array<f32, MAX_LAYERS>;
 var<private> feat: array<f32, MAX_CHANNELS>;
 var<private> cw: array<f32, 8>;
 var<private> cidx: array<u32, 8>;
+// Where the 8 corners' colour channels start in `vals`.
+var<private> csrc: array<u32, 8>;
 // The 8 corners' raw densities.
 var<private> cd: array<f32, 8>;
 var<private> basis: array<f32, 16>;
 var<private> refl: array<f32, 16>;
 var<private> h1: array<f32, MAX_HIDDEN>;
 var<private> h2: array<f32, MAX_HIDDEN>;
+// ColourNet::ray_bias of this ray's direction, MAX_HIDDEN a layer (MAX_LAYERS * MAX_HIDDEN).
+var<private> bias: array<f32, 2048>;
 
 fn sigmoid(x: f32) -> f32 {
     return 1.0 / (1.0 + exp(-x));
@@ -118,49 +123,6 @@ fn alpha_of(raw: f32, delta: f32) -> f32 {
         return e / (1.0 + e);
     }
     return 1.0 - exp(-ln_1p(e) * delta);
-}
-
-// sh::sh_basis into `basis` (which = 0) or `refl` (which = 1).
-fn sh_basis(degree: u32, d: vec3<f32>, which: u32) {
-    var o: array<f32, 16>;
-    o[0] = 0.2820948;
-    if (degree >= 1u) {
-        o[1] = -0.4886025 * d.y;
-        o[2] = 0.4886025 * d.z;
-        o[3] = -0.4886025 * d.x;
-    }
-    if (degree >= 2u) {
-        let x = d.x;
-        let y = d.y;
-        let z = d.z;
-        o[4] = 1.0925484 * x * y;
-        o[5] = -1.0925484 * y * z;
-        o[6] = 0.31539157 * (2.0 * z * z - x * x - y * y);
-        o[7] = -1.0925484 * x * z;
-        o[8] = 0.5462742 * (x * x - y * y);
-    }
-    if (degree >= 3u) {
-        let x = d.x;
-        let y = d.y;
-        let z = d.z;
-        let xx = x * x;
-        let yy = y * y;
-        let zz = z * z;
-        o[9] = -0.5900436 * y * (3.0 * xx - yy);
-        o[10] = 2.8906114 * x * y * z;
-        o[11] = -0.4570458 * y * (4.0 * zz - xx - yy);
-        o[12] = 0.37317633 * z * (2.0 * zz - 3.0 * xx - 3.0 * yy);
-        o[13] = -0.4570458 * x * (4.0 * zz - xx - yy);
-        o[14] = 1.4453057 * z * (xx - yy);
-        o[15] = -0.5900436 * x * (xx - 3.0 * yy);
-    }
-    for (var i = 0u; i < 16u; i++) {
-        if (which == 0u) {
-            basis[i] = o[i];
-        } else {
-            refl[i] = o[i];
-        }
-    }
 }
 
 // Grid::vertex_slot.
@@ -270,202 +232,6 @@ fn density_gradient(f: vec3<f32>) -> vec3<f32> {
     return g;
 }
 
-// colour_net::reflect.
-fn reflect_about(d: vec3<f32>, g: vec3<f32>) -> vec3<f32> {
-    let len2 = g.x * g.x + g.y * g.y + g.z * g.z;
-    if (len2 < 1e-12) {
-        return d;
-    }
-    let k = 2.0 * (d.x * g.x + d.y * g.y + d.z * g.z) / len2;
-    return d - g * k;
-}
-
-// colour_net's 8-lane dot product of n weights at vals[w] with h1 (which = 0) or h2.
-fn dot8(w: u32, n: u32, which: u32) -> f32 {
-    var acc: array<f32, 8>;
-    let chunks = n / 8u;
-    for (var c = 0u; c < chunks; c++) {
-        for (var i = 0u; i < 8u; i++) {
-            let j = c * 8u + i;
-            var x = h1[j];
-            if (which == 1u) {
-                x = h2[j];
-            }
-            acc[i] += vals[w + j] * x;
-        }
-    }
-    var tail = 0.0;
-    for (var j = chunks * 8u; j < n; j++) {
-        var x = h1[j];
-        if (which == 1u) {
-            x = h2[j];
-        }
-        tail += vals[w + j] * x;
-    }
-    var s = 0.0;
-    for (var i = 0u; i < 8u; i++) {
-        s += acc[i];
-    }
-    return s + tail;
-}
-
-// ColourNet::ray_bias then forward_features, on `feat` (and `refl`), the direction's `basis`.
-fn net_rgb(l: u32) -> vec3<f32> {
-    let L = &layers[l];
-    let nf = (*L).features;
-    let nd = (*L).dir_terms;
-    let nr = (*L).refl_terms;
-    let nh = (*L).hidden;
-    let nh2 = (*L).hidden2;
-    let w1 = (*L).net_off;
-    let b1 = w1 + (nf + nd + nr) * nh;
-    let wm = b1 + nh;
-    let bm = wm + nh * nh2;
-    var wo = bm + nh2;
-    if (nh2 == 0u) {
-        wo = b1 + nh;
-    }
-    for (var j = 0u; j < nh; j++) {
-        var a = vals[b1 + j];
-        for (var i = 0u; i < nd; i++) {
-            a += basis[i] * vals[w1 + (nf + i) * nh + j];
-        }
-        for (var i = 0u; i < nf; i++) {
-            a += feat[i] * vals[w1 + i * nh + j];
-        }
-        for (var i = 0u; i < nr; i++) {
-            a += refl[i] * vals[w1 + (nf + nd + i) * nh + j];
-        }
-        h1[j] = max(a, 0.0);
-    }
-    var rgb: vec3<f32>;
-    if (nh2 == 0u) {
-        let bo = wo + 3u * nh;
-        for (var c = 0u; c < 3u; c++) {
-            rgb[c] = sigmoid(vals[bo + c] + dot8(wo + c * nh, nh, 0u));
-        }
-        return rgb;
-    }
-    for (var j = 0u; j < nh2; j++) {
-        h2[j] = vals[bm + j];
-    }
-    for (var i = 0u; i < nh; i++) {
-        let x = h1[i];
-        if (x > 0.0) {
-            for (var j = 0u; j < nh2; j++) {
-                h2[j] += x * vals[wm + i * nh2 + j];
-            }
-        }
-    }
-    for (var j = 0u; j < nh2; j++) {
-        h2[j] = max(h2[j], 0.0);
-    }
-    let bo = wo + 3u * nh2;
-    for (var c = 0u; c < 3u; c++) {
-        rgb[c] = sigmoid(vals[bo + c] + dot8(wo + c * nh2, nh2, 1u));
-    }
-    return rgb;
-}
-
-fn to_linear(c: f32) -> f32 {
-    if (c <= 0.04045) {
-        return c / 12.92;
-    }
-    return pow((c + 0.055) / 1.055, 2.4);
-}
-
-fn to_srgb(c: f32) -> f32 {
-    if (c <= 0.0031308) {
-        return 12.92 * c;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
-
-fn cbrt(x: f32) -> f32 {
-    if (x == 0.0) {
-        return 0.0;
-    }
-    return sign(x) * pow(abs(x), 1.0 / 3.0);
-}
-
-// edit::recolour's OKLab conversions.
-fn srgb_to_oklab(c: vec3<f32>) -> vec3<f32> {
-    let r = to_linear(c.x);
-    let g = to_linear(c.y);
-    let b = to_linear(c.z);
-    let l = cbrt(0.41222146 * r + 0.53633255 * g + 0.051445995 * b);
-    let m = cbrt(0.2119035 * r + 0.6806995 * g + 0.10739696 * b);
-    let s = cbrt(0.08830246 * r + 0.28171885 * g + 0.6299787 * b);
-    return vec3<f32>(
-        0.21045426 * l + 0.7936178 * m - 0.004072047 * s,
-        1.9779985 * l - 2.4285922 * m + 0.4505937 * s,
-        0.025904037 * l + 0.78277177 * m - 0.80867577 * s,
-    );
-}
-
-fn oklab_to_linear(lab: vec3<f32>) -> vec3<f32> {
-    let l0 = lab.x + 0.39633778 * lab.y + 0.21580376 * lab.z;
-    let m0 = lab.x - 0.105561346 * lab.y - 0.06385417 * lab.z;
-    let s0 = lab.x - 0.08948418 * lab.y - 1.2914855 * lab.z;
-    let l = l0 * l0 * l0;
-    let m = m0 * m0 * m0;
-    let s = s0 * s0 * s0;
-    return vec3<f32>(
-        4.0767417 * l - 3.3077116 * m + 0.23096994 * s,
-        -1.268438 * l + 2.6097574 * m - 0.34131938 * s,
-        -0.0041960863 * l - 0.7034186 * m + 1.7076147 * s,
-    );
-}
-
-fn in_gamut(c: vec3<f32>) -> bool {
-    let e = 1e-5;
-    return all(c >= vec3<f32>(-e)) && all(c <= vec3<f32>(1.0 + e));
-}
-
-fn oklab_to_srgb(lab: vec3<f32>) -> vec3<f32> {
-    var lin = oklab_to_linear(lab);
-    if (!in_gamut(lin)) {
-        var lo = 0.0;
-        var hi = 1.0;
-        for (var i = 0; i < 12; i++) {
-            let mid = 0.5 * (lo + hi);
-            if (in_gamut(oklab_to_linear(vec3<f32>(lab.x, lab.y * mid, lab.z * mid)))) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        if (lo > 0.0) {
-            lin = oklab_to_linear(vec3<f32>(lab.x, lab.y * lo, lab.z * lo));
-        } else {
-            lin = oklab_to_linear(vec3<f32>(clamp(lab.x, 0.0, 1.0), 0.0, 0.0));
-        }
-    }
-    return vec3<f32>(
-        to_srgb(clamp(lin.x, 0.0, 1.0)),
-        to_srgb(clamp(lin.y, 0.0, 1.0)),
-        to_srgb(clamp(lin.z, 0.0, 1.0)),
-    );
-}
-
-// PreparedRecolour::apply.
-fn recolour(l: u32, rgb: vec3<f32>) -> vec3<f32> {
-    let L = &layers[l];
-    let lab = srgb_to_oklab(rgb);
-    var a: f32;
-    var b: f32;
-    if ((*L).recolour == 1u) {
-        a = lab.y + (*L).rc2 * ((*L).rc0 - lab.y);
-        b = lab.z + (*L).rc2 * ((*L).rc1 - lab.z);
-    } else {
-        let c = (*L).rc0;
-        let s = (*L).rc1;
-        a = c * lab.y - s * lab.z;
-        b = s * lab.y + c * lab.z;
-    }
-    return oklab_to_srgb(vec3<f32>(lab.x, a, b));
-}
-
 // Marcher::visit: the sample at cell b, fraction f, world distance t. True when it is kept
 // (then it is the layer's pending sample).
 fn visit(l: u32, b: vec3<u32>, f: vec3<f32>, t: f32) -> bool {
@@ -491,34 +257,28 @@ fn visit(l: u32, b: vec3<u32>, f: vec3<f32>, t: f32) -> bool {
     let w = trans * alpha;
     var rgb = vec3<f32>(0.0);
     if ((*L).is_net == 0u || w >= (*L).min_weight) {
+        // Grid::interp_colour: each channel the sum over the corners in their order.
         let n = (*L).channels - 1u;
-        for (var j = 0u; j < n; j++) {
-            feat[j] = 0.0;
-        }
         for (var i = 0u; i < 8u; i++) {
-            let src = colour_at(l, cidx[i]);
-            let wi = cw[i];
-            for (var j = 0u; j < n; j++) {
-                feat[j] += wi * vals[src + j];
-            }
+            csrc[i] = colour_at(l, cidx[i]);
         }
-        sh_basis((*L).sh_degree, st_d[l], 0u);
+        for (var j = 0u; j < n; j++) {
+            var a = 0.0;
+            for (var i = 0u; i < 8u; i++) {
+                a += cw[i] * vals[csrc[i] + j];
+            }
+            feat[j] = a;
+        }
         if ((*L).is_net == 0u) {
             let k = (*L).sh_k;
-            for (var c = 0u; c < 3u; c++) {
-                var s = 0.0;
-                for (var j = 0u; j < k; j++) {
-                    s += feat[c * k + j] * basis[j];
-                }
-                rgb[c] = sigmoid(s);
-            }
+            basis = sh_basis((*L).sh_degree, st_d[l]);
+            rgb.x = sigmoid(sh_dot(0u, k));
+            rgb.y = sigmoid(sh_dot(k, k));
+            rgb.z = sigmoid(sh_dot(2u * k, k));
         } else {
-            for (var i = 0u; i < 16u; i++) {
-                refl[i] = 0.0;
-            }
             if ((*L).refl_terms > 0u) {
                 let g = density_gradient(f);
-                sh_basis((*L).sh_degree, reflect_about(st_d[l], g), 1u);
+                refl = sh_basis((*L).sh_degree, reflect_about(st_d[l], g));
             }
             rgb = net_rgb(l);
         }
@@ -650,6 +410,10 @@ fn start(l: u32, d: vec3<f32>) {
     st_ks[l] = 0u;
     st_s1[l] = tf;
     st_done[l] = 0u;
+    if ((*L).is_net == 1u) {
+        basis = sh_basis((*L).sh_degree, dl);
+        ray_bias(l);
+    }
 }
 
 @compute @workgroup_size(64)
@@ -716,5 +480,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
             best_w = weights[l];
         }
     }
-    outs[ray] = RayOut(rgb.x, rgb.y, rgb.z, 1.0 - trans, t_half, depth, index, 0u);
+    // A loop of n_layers + 1 (at least 2) iterations: a device that ended loops early (see the
+    // note on loops above) ends this one after the first, and the ray is reported cut.
+    var probe = 0u;
+    for (var i = 0u; i <= n; i++) {
+        probe += 1u;
+    }
+    var cut = 0u;
+    if (probe != n + 1u) {
+        cut = 1u;
+    }
+    outs[ray] = RayOut(rgb.x, rgb.y, rgb.z, 1.0 - trans, t_half, depth, index, cut);
 }

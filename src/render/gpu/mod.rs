@@ -1,7 +1,9 @@
 //! The GPU renderer: the composite ray march of [`super::composite`] (and so the single-field
 //! march of [`crate::field::march`], a composite of one field in place) as a wgpu compute
-//! shader (`march.wgsl`), one invocation a ray, in the same f32 arithmetic in the same order,
-//! so that its frames match the CPU's to rounding (`tests/gpu_parity.rs`, on Mesa's lavapipe).
+//! shader (`march.wgsl`, a sample's colour in `colour.wgsl`), one invocation a ray, in the same
+//! f32 arithmetic in the same order, so that its frames match the CPU's to rounding
+//! (`tests/gpu_parity.rs`, on Mesa's lavapipe). A ray whose loops the device ended early (Mesa
+//! llvmpipe's loop budget, see `colour.wgsl`) makes the frame an error, never a wrong pixel.
 //!
 //! - [`Gpu::open`] finds an adapter ([`DeviceChoice`]: `auto` takes hardware only, `gpu` a
 //!   software Vulkan device too; `OBJNERF_GPU_ADAPTER` picks one by name).
@@ -197,6 +199,17 @@ impl Gpu {
         enc.copy_buffer_to_buffer(&out, 0, &staging, 0, out_bytes);
         self.queue.submit([enc.finish()]);
         let raw = self.read(&staging)?;
+        let cut = raw.chunks_exact(8).filter(|w| w[7] != 0).count();
+        if cut > 0 {
+            return Err(gpu_error(
+                self,
+                format!(
+                    "the device ended the march's loops early on {cut} of {n} rays (a \
+                     software device's limit on loop iterations, as Mesa llvmpipe's 65535 a \
+                     batch of rays); render these fields on the CPU (--device cpu)"
+                ),
+            ));
+        }
         Ok(raw
             .chunks_exact(8)
             .map(|w| {
@@ -219,9 +232,15 @@ impl Gpu {
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.device
-            .poll(wgpu::PollType::Wait)
-            .map_err(|e| gpu_error(self, format!("waiting for the frame: {e}")))?;
+        // wgpu gives up a wait after 60 s, which a large frame on a software device (lavapipe)
+        // can take, the machine loaded; wait on, up to an hour.
+        let mut waits = 0;
+        while let Err(e) = self.device.poll(wgpu::PollType::Wait) {
+            waits += 1;
+            if waits == 60 {
+                return Err(gpu_error(self, format!("waiting for the frame: {e}")));
+            }
+        }
         rx.recv()
             .map_err(|e| gpu_error(self, e.to_string()))?
             .map_err(|e| gpu_error(self, format!("reading the frame back: {e}")))?;
