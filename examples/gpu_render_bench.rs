@@ -216,5 +216,5 @@ fn chart(speed: &[serde_json::Value]) -> Res<String> {
     );
     p.y.start = 0.0;
     p.legend = SeriesLabelPosition::UpperRight;
-    Ok(svg((900, 480), 1, &[p])?)
+    svg((900, 480), 1, &[p])
 }
