@@ -48,7 +48,9 @@ def prepare(context, root, base_dir, passes=PASSES):
         for f in _frames(out_dir, kind, ext):
             os.remove(f)
     args = ["render-edit", edit_path, "--path", path_path, "--out", out_dir,
-            "--size", f"{doc['render_width']}x{doc['render_height']}", "--passes", passes]
+            "--size", f"{doc['render_width']}x{doc['render_height']}", "--passes", passes,
+            # A hardware GPU when the machine has one (the CPU otherwise; the report says which).
+            "--device", "auto"]
     return args, out_dir, len(doc["camera_path"])
 
 

@@ -37,6 +37,8 @@ from objnerf_blender import formats
 json.load(open(edit))
 path = json.load(open(opts["--path"]))
 w, h = map(int, opts["--size"].split("x"))
+# The add-on lets objnerf take a hardware GPU when the machine has one.
+assert opts.get("--device") == "auto", opts
 assert (w, h) == (path["render_width"], path["render_height"])
 out = opts["--out"]
 os.makedirs(out, exist_ok=True)

@@ -9,6 +9,7 @@ use objnerf::edit::template::{edit_template, TemplateBackground};
 use objnerf::field::RenderOptions;
 use objnerf::pipeline::render_edit::{render_edit, PathSource, RenderEditOptions};
 use objnerf::render::frame_files::Passes;
+use objnerf::render::gpu::DeviceChoice;
 use objnerf::{Error, Result};
 use std::path::PathBuf;
 
@@ -49,6 +50,10 @@ pub struct RenderEditCmd {
     /// Do not write the video.
     #[arg(long)]
     no_video: bool,
+    /// Where to draw: auto (a hardware GPU when there is one, else the CPU), cpu, or gpu (any
+    /// GPU adapter, a software one such as lavapipe too; none is an error).
+    #[arg(long, default_value = "auto")]
+    device: DeviceChoice,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -84,17 +89,19 @@ impl RenderEditCmd {
             },
             fps: self.fps,
             video: !self.no_video,
+            device: self.device,
         };
         let r = render_edit(&self.edit, &opts, &self.out, &Bars::default())?;
         if self.json {
             print_json(&r);
         } else {
             println!(
-                "rendered {} frames of {}x{} ({} fields each) in {:.1} s: {:.2} frames/s; peak RSS {} MiB -> {}{}",
+                "rendered {} frames of {}x{} ({} fields each) on {} in {:.1} s: {:.2} frames/s; peak RSS {} MiB -> {}{}",
                 r.frames,
                 r.width,
                 r.height,
                 r.layers,
+                r.device.describe(),
                 r.seconds,
                 r.frames_per_second,
                 r.peak_rss_mib,

@@ -5,10 +5,11 @@ use crate::cli::progress_bars::Bars;
 use clap::Args;
 use objnerf::field::holdout::{held_out_views, HoldOut};
 use objnerf::field::io;
-use objnerf::field::{eval::evaluate_model, MaskSource, SetupConfig};
+use objnerf::field::{MaskSource, SetupConfig};
 use objnerf::fit::{FitOptions, SceneFitOptions};
 use objnerf::pipeline::train::{train, FieldTarget};
-use objnerf::render::render_scene_views;
+use objnerf::render::gpu::DeviceChoice;
+use objnerf::render::{evaluate_model, render_scene_views};
 use objnerf::space::SpaceChoice;
 use objnerf::supervision::DepthMode;
 use objnerf::{Result, Scene};
@@ -220,6 +221,17 @@ pub struct RenderCmd {
     downscale: Option<u32>,
     #[command(flatten)]
     pixels: PixelSamples,
+    #[command(flatten)]
+    device: DeviceArg,
+}
+
+/// Where views are drawn, for `render` and `eval` alike.
+#[derive(Args)]
+pub struct DeviceArg {
+    /// auto (a hardware GPU when there is one, else the CPU), cpu, or gpu (any GPU adapter, a
+    /// software one such as lavapipe too; none is an error).
+    #[arg(long = "device", default_value = "auto")]
+    choice: DeviceChoice,
 }
 
 /// Antialiasing, for `render` and `eval` alike.
@@ -236,15 +248,20 @@ impl RenderCmd {
     pub fn run(self) -> Result<()> {
         let model = io::load_field(&self.model)?;
         let scene = Scene::load(&self.scene)?;
-        let n = render_scene_views(
+        let (n, device) = render_scene_views(
             &model,
             &scene,
             self.downscale,
             self.pixels.n,
+            self.device.choice,
             &self.out,
             &Bars::default(),
         )?;
-        eprintln!("wrote {n} images to {}", self.out.display());
+        eprintln!(
+            "wrote {n} images to {} (on {})",
+            self.out.display(),
+            device.describe()
+        );
         Ok(())
     }
 }
@@ -265,6 +282,8 @@ pub struct EvalCmd {
     hold_out: HoldOutArg,
     #[command(flatten)]
     pixels: PixelSamples,
+    #[command(flatten)]
+    device: DeviceArg,
     #[arg(long)]
     json: bool,
 }
@@ -279,25 +298,26 @@ impl EvalCmd {
             (None, false) => MaskSource::Alpha,
         };
         let n = self.pixels.n;
-        let r = evaluate_model(
+        let (r, device) = evaluate_model(
             &model,
             &scene,
             &masks,
             self.downscale,
             self.hold_out.or(HoldOut::None),
             n,
+            self.device.choice,
         )?;
         if self.json {
             let v = serde_json::json!({
                 "psnr": r.psnr, "ssim": r.ssim, "psnr_colour_fit": r.psnr_colour_fit,
                 "num_views": r.num_views, "views": r.views,
-                "seconds": r.seconds, "pixel_samples": n,
+                "seconds": r.seconds, "pixel_samples": n, "device": device,
             });
             println!("{v}");
         } else {
             println!(
-                "PSNR {:.2} dB, SSIM {:.4} over {} views ({:.2} dB after each view's best affine colour map)",
-                r.psnr, r.ssim, r.num_views, r.psnr_colour_fit
+                "PSNR {:.2} dB, SSIM {:.4} over {} views ({:.2} dB after each view's best affine colour map), on {}",
+                r.psnr, r.ssim, r.num_views, r.psnr_colour_fit, device.describe()
             );
         }
         Ok(())

@@ -163,6 +163,12 @@ pub struct PreparedRecolour {
 }
 
 impl PreparedRecolour {
+    /// (the target's OKLab a-b, if a target; the strength; the hue turn's cosine and sine):
+    /// what the GPU renderer applies in the same arithmetic.
+    pub fn parts(&self) -> (Option<[f32; 2]>, f32, [f32; 2]) {
+        (self.target_ab, self.strength, self.cos_sin)
+    }
+
     /// Recolour one sRGB colour (0..1): lightness kept, a-b moved.
     pub fn apply(&self, rgb: [f32; 3]) -> [f32; 3] {
         let lab = srgb_to_oklab(rgb);

@@ -264,53 +264,58 @@ pub struct EvalReport {
 
 /// Render every view on white and score it against its truth on white.
 pub fn evaluate(f: &Field, opt: &RenderOptions, views: &[View]) -> EvalReport {
+    let on_cpu =
+        |v: &View| Ok::<_, std::convert::Infallible>(render_view(f, opt, &v.cam, [1.0; 3]));
+    match evaluate_with(views, on_cpu) {
+        Ok(r) => r,
+        Err(never) => match never {},
+    }
+}
+
+/// [`evaluate`] with each view drawn (on white) by `render` (the GPU renderer's, say).
+pub fn evaluate_with<E>(
+    views: &[View],
+    mut render: impl FnMut(&View) -> std::result::Result<Rendered, E>,
+) -> std::result::Result<EvalReport, E> {
     let start = std::time::Instant::now();
     let white = [1.0; 3];
-    let scores: Vec<ViewScore> = views
-        .iter()
-        .map(|v| {
-            let r = render_view(f, opt, &v.cam, white);
-            let t = truth_on(v, white);
-            ViewScore {
-                name: v.name.clone(),
-                psnr: psnr(&r.rgb, &t),
-                ssim: ssim(&r.rgb, &t, v.width as usize, v.height as usize),
-                psnr_colour_fit: psnr_colour_fit(&r.rgb, &t),
-            }
-        })
-        .collect();
+    let mut scores = Vec::with_capacity(views.len());
+    for v in views {
+        let r = render(v)?;
+        let t = truth_on(v, white);
+        scores.push(ViewScore {
+            name: v.name.clone(),
+            psnr: psnr(&r.rgb, &t),
+            ssim: ssim(&r.rgb, &t, v.width as usize, v.height as usize),
+            psnr_colour_fit: psnr_colour_fit(&r.rgb, &t),
+        });
+    }
     let n = scores.len().max(1) as f64;
-    EvalReport {
+    Ok(EvalReport {
         psnr: scores.iter().map(|s| s.psnr).sum::<f64>() / n,
         ssim: scores.iter().map(|s| s.ssim).sum::<f64>() / n,
         psnr_colour_fit: scores.iter().map(|s| s.psnr_colour_fit).sum::<f64>() / n,
         num_views: scores.len(),
         views: scores,
         seconds: start.elapsed().as_secs_f64(),
-    }
+    })
 }
 
-/// Score a model on a scene's views (only those `hold_out` leaves out of training, when it
-/// holds any out), with `masks` as the truth's alpha, at `downscale` (default: the one it was trained at),
-/// rendering with the default sampling (half-voxel steps) however coarsely training sampled,
-/// and `pixel_samples` x `pixel_samples` rays a pixel ([`RenderOptions::pixel_samples`]).
-pub fn evaluate_model(
+/// The views a model is scored on (`objnerf eval`, `render::views::evaluate_model`): a scene's
+/// views (only those `hold_out` leaves out of training, when it holds any out), with `masks` as
+/// the truth's alpha, at `downscale` (default: the one it was trained at).
+pub fn eval_views(
     model: &Model,
     scene: &Scene,
     masks: &MaskSource,
     downscale: Option<u32>,
     hold_out: HoldOut,
-    pixel_samples: u32,
-) -> Result<EvalReport> {
+) -> Result<Vec<View>> {
     let mut views = load_views(scene, masks, downscale.unwrap_or_else(|| model.downscale()))?;
     if !hold_out.is_none() {
         views = super::holdout::split(views, hold_out).1;
     }
-    let opt = RenderOptions {
-        pixel_samples,
-        ..RenderOptions::default()
-    };
-    Ok(evaluate(&model.field, &opt, &views))
+    Ok(views)
 }
 
 #[cfg(test)]

@@ -41,6 +41,12 @@ impl LiveBricks {
         self.blocks[j / 64] |= 1 << (j % 64);
     }
 
+    /// The bits by brick, then by block (x-fastest, 64 a word), and the blocks per axis: what the
+    /// GPU renderer uploads to skip space as [`LiveBricks::brick`] and [`LiveBricks::block`] do.
+    pub fn words(&self) -> (&[u64], &[u64], [usize; 3]) {
+        (&self.bricks, &self.blocks, self.block_dims)
+    }
+
     /// Whether brick `b` (brick coordinates, inside the grid) may hold an occupied cell.
     #[inline]
     pub fn brick(&self, b: [usize; 3]) -> bool {

@@ -238,6 +238,11 @@ impl Field {
         }
     }
 
+    /// The bricks that hold an occupied cell (what the marcher skips by).
+    pub fn live_bricks(&self) -> &LiveBricks {
+        &self.live
+    }
+
     /// The occupancy words, one a grid slot (see the field's doc).
     pub fn occupancy_words(&self) -> &[u64] {
         &self.occupancy

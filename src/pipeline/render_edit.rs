@@ -9,8 +9,9 @@
 use crate::edit::{load_edit, EditFile, LoadedBackground, LoadedEdit};
 use crate::error::{Error, Result};
 use crate::field::{RayCamera, RenderOptions};
-use crate::render::composite::{render_frame, Composite, Frame};
+use crate::render::composite::{Composite, Frame};
 use crate::render::frame_files::{write_frame, write_video, FrameImages, Passes};
+use crate::render::gpu::{open_device, renderer, DeviceChoice, DeviceUsed};
 use crate::scene::camera_path::{CameraPath, Orbit, PathFrame};
 use crate::scene::io::DepthMap;
 use crate::scene::Scene;
@@ -43,6 +44,8 @@ pub struct RenderEditOptions {
     pub fps: f64,
     /// Also write the frames as a video.
     pub video: bool,
+    /// Where frames are drawn (`auto`: a hardware GPU when there is one).
+    pub device: DeviceChoice,
 }
 
 impl Default for RenderEditOptions {
@@ -61,6 +64,7 @@ impl Default for RenderEditOptions {
             },
             fps: 24.0,
             video: true,
+            device: DeviceChoice::default(),
         }
     }
 }
@@ -78,6 +82,8 @@ pub struct RenderEditReport {
     pub frames_per_second: f64,
     pub video: Option<PathBuf>,
     pub peak_rss_mib: u64,
+    /// Which device drew the frames, and why.
+    pub device: DeviceUsed,
 }
 
 /// The default orbit: around the visible objects' world boxes (else the background's box),
@@ -182,13 +188,16 @@ pub fn render_edit(
     let (edit, path) = prepare(edit_path, opts)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let composite = Composite::from_edit(&edit, opts.render);
+    let (gpu, mut device) = open_device(opts.device)?;
+    let frames = renderer(&composite, gpu.as_ref(), opts.device, &mut device)?;
+    progress.note(&format!("rendering on {}", device.describe()));
     let mpu = edit.file.metres_per_unit;
     let start = Instant::now();
     let mut rgb = Vec::with_capacity(path.cameras.len());
     progress.begin("render", path.cameras.len() as u64);
     for (k, c) in path.cameras.iter().enumerate() {
         let cam = RayCamera::new(format!("frame_{k:05}"), c.camera.clone(), c.pose);
-        let f = render_frame(&composite, &cam);
+        let f = frames.render_frame(&cam)?;
         let images = frame_images(&f, opts.passes, mpu);
         write_frame(out, k, &images)?;
         let fps = (k + 1) as f64 / start.elapsed().as_secs_f64().max(1e-9);
@@ -216,5 +225,6 @@ pub fn render_edit(
         frames_per_second: path.cameras.len() as f64 / seconds.max(1e-9),
         video,
         peak_rss_mib: crate::util::mem::peak_rss_mib(),
+        device,
     })
 }

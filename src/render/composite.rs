@@ -29,11 +29,11 @@ use rayon::prelude::*;
 pub struct Layer<'a> {
     pub field: &'a Field,
     /// World -> the field's frame: p' = scale * rot * p + shift.
-    rot: Mat3,
-    shift: Vec3,
+    pub(super) rot: Mat3,
+    pub(super) shift: Vec3,
     /// Field units per world unit (world t = field t / scale).
-    scale: f32,
-    recolour: Option<PreparedRecolour>,
+    pub(super) scale: f32,
+    pub(super) recolour: Option<PreparedRecolour>,
     /// The value of the object-index pass (0 = background).
     pub index: u8,
 }
@@ -122,6 +122,14 @@ pub struct Scratch {
     samples: Vec<Vec<Sample>>,
     heads: Vec<usize>,
     weights: Vec<f32>,
+}
+
+impl Scratch {
+    /// Per layer, the weight it took in the last ray [`render_ray`] drew (which decides the
+    /// object index).
+    pub fn weights(&self) -> &[f32] {
+        &self.weights
+    }
 }
 
 /// Render the ray `o + t d` (d unit) through every layer.

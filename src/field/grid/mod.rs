@@ -136,6 +136,16 @@ impl Grid {
         })
     }
 
+    /// Per brick (x-fastest over `brick_dims`), its slot or [`NONE`].
+    pub fn brick_index(&self) -> &[u32] {
+        &self.index
+    }
+
+    /// What an unallocated vertex holds, channel by channel.
+    pub fn fill(&self) -> &[f32] {
+        &self.fill
+    }
+
     /// The allocated bricks' positions, by slot.
     pub fn brick_list(&self) -> &[[u32; 3]] {
         &self.bricks
