@@ -59,13 +59,7 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3
                 .collect()
         })
         .collect();
-    let mut out = Rendered {
-        width: w,
-        height: h,
-        rgb: Vec::with_capacity((w * h) as usize),
-        alpha: Vec::with_capacity((w * h) as usize),
-        depth: Vec::with_capacity((w * h) as usize),
-    };
+    let mut out = Rendered::with_capacity(w, h);
     for (a, d, c) in rows.into_iter().flatten() {
         out.alpha.push(a);
         out.depth.push(d);
@@ -75,6 +69,18 @@ pub fn render_view(f: &Field, opt: &RenderOptions, view: &RayCamera, bg: [f32; 3
 }
 
 impl Rendered {
+    /// An empty render of a `width` x `height` view, its passes' room reserved.
+    pub fn with_capacity(width: u32, height: u32) -> Rendered {
+        let n = (width * height) as usize;
+        Rendered {
+            width,
+            height,
+            rgb: Vec::with_capacity(n),
+            alpha: Vec::with_capacity(n),
+            depth: Vec::with_capacity(n),
+        }
+    }
+
     /// The colour as an 8-bit RGB image.
     pub fn rgb8(&self) -> image::RgbImage {
         rgb8(self.width, self.height, &self.rgb)

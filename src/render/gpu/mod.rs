@@ -315,13 +315,7 @@ impl GpuComposite<'_> {
             }
         }
         let rays = self.gpu.march(self, cam.center(), &dirs)?;
-        let mut out = Rendered {
-            width: w,
-            height: h,
-            rgb: Vec::with_capacity((w * h) as usize),
-            alpha: Vec::with_capacity((w * h) as usize),
-            depth: Vec::with_capacity((w * h) as usize),
-        };
+        let mut out = Rendered::with_capacity(w, h);
         for px in rays.chunks_exact((k * k) as usize) {
             let (mut alpha, mut depth, mut rgb) = (0.0, 0.0, [0.0f32; 3]);
             for r in px {
