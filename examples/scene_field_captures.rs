@@ -18,7 +18,7 @@
 #[path = "support/bench.rs"]
 mod bench;
 
-use objnerf::util::chart::{palette, svg, ChartResult, Layer, Panel};
+use objnerf::util::chart::{palette, svg, ChartResult, Layer, Panel, SeriesLabelPosition};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -209,6 +209,11 @@ fn chart(result: &Value, path: &Path) -> ChartResult<()> {
         "rays / s",
         speed,
     ));
+    // The runs end at the right, near the bottom when short of the published levels: the
+    // legend at the lower right hid them.
+    for p in &mut panels {
+        p.legend = SeriesLabelPosition::LowerLeft;
+    }
     let cols = 2;
     let rows = panels.len().div_ceil(cols);
     std::fs::write(path, svg((1100, 400 * rows as u32), rows, &panels)?)?;
