@@ -3,7 +3,8 @@
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
 //! held out), SF_NET, SF_SCENE_NET, SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C, SF_FREE, SF_DEPTH_W (a ring's or
-//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's).
+//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's), SF_TERM (training's early termination), SF_WHOLE (train for the whole SF_SECONDS, the schedule
+//! following the time, as `objnerf train --time-budget` does).
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
 
@@ -41,7 +42,7 @@ fn main() -> objnerf::Result<()> {
         setup.net_features = f;
     }
     if let Some(f) = env("SF_SCENE_NET") {
-        setup.scene_net_features = f;
+        setup.scene_net_features = Some(f);
     }
     if let Some(v) = env("SF_VPP") {
         setup.voxels_per_pixel = v;
@@ -55,6 +56,8 @@ fn main() -> objnerf::Result<()> {
             downscale,
             time_budget: Some(env("SF_SECONDS").unwrap_or(120.0)),
             steps: env("SF_STEPS").unwrap_or(20_000),
+            // SF_WHOLE=true: the schedule follows SF_SECONDS, as `train --time-budget` does.
+            whole_budget: env("SF_WHOLE").unwrap_or(false),
             setup,
             exclude_views: held.clone(),
             depth: env("SF_DEPTH").unwrap_or(d.fit.depth),
@@ -72,6 +75,10 @@ fn main() -> objnerf::Result<()> {
             batch: env("SF_BATCH").unwrap_or(d.train.batch),
             lr_density: env("SF_LR_D").unwrap_or(d.train.lr_density),
             lr_color: env("SF_LR_C").unwrap_or(d.train.lr_color),
+            render: objnerf::field::march::RenderOptions {
+                term_thresh: env("SF_TERM").unwrap_or(d.train.render.term_thresh),
+                ..d.train.render
+            },
             ..d.train.clone()
         },
         ..Default::default()

@@ -111,7 +111,7 @@ fn a_scene_field_takes_a_colour_network_when_asked() {
         let mut opts = objnerf::fit::SceneFitOptions::default();
         opts.fit.downscale = 4;
         opts.fit.steps = 20;
-        opts.fit.setup.scene_net_features = features;
+        opts.fit.setup.scene_net_features = Some(features);
         let mut fit = objnerf::fit::SceneFit::new(&ring, &opts).unwrap();
         let stats = fit.train(&opts.fit.stop_rule(), &mut |_| {});
         assert_eq!(stats.steps, 20);

@@ -61,8 +61,9 @@ pub struct TrainCmd {
     /// direction enters as its SH basis to --colour-net-sh-degree) when
     /// the object has at least --colour-net-min-views training views, SH coefficients otherwise
     /// (0: SH always; default 8; examples/results/field.md, "Colour by view count"). A scene
-    /// field (--scene-field) takes SH colour unless this is given (a network of that many
-    /// features whatever its view count; examples/results/scene_field.md).
+    /// field (--scene-field) takes a network of this many features whatever its view count (0:
+    /// SH colour); without it, 9 features on a forward-facing capture and SH colour in the
+    /// other layouts (examples/results/scene_field.md).
     #[arg(long)]
     colour_net: Option<usize>,
     /// Fewer training views than this: SH colour (a network's view dependence does not hold
@@ -121,7 +122,7 @@ impl TrainCmd {
                 net_features: self
                     .colour_net
                     .unwrap_or(SetupConfig::default().net_features),
-                scene_net_features: self.colour_net.unwrap_or(0),
+                scene_net_features: self.colour_net,
                 net_min_views: self.colour_net_min_views,
                 net_sh_degree: self.colour_net_sh_degree,
                 large_model_passes: self.large_model_passes,

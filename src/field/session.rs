@@ -53,14 +53,10 @@ pub struct SetupConfig {
     /// sphere (30 views) loses 0.9 dB and fox's head (42) 0.24 (examples/results/field.md,
     /// "Colour by view count"). Scene fields take `scene_net_features`.
     pub net_min_views: usize,
-    /// A scene field's colour network features (0: SH colour, the default), one hidden layer
-    /// of `net_hidden`, the view direction to `net_sh_degree`. 20 000 steps held out (every
-    /// 6th view): demo ring 29.90 -> 30.44 dB (9 features), in 300 s 29.65 -> 30.17 at 0.8x
-    /// the rays a second; fern (LLFF hold-out) 20.86 -> 21.17 dB a step but at 0.67x the rays
-    /// a second, so about even in a time budget (examples/results/scene_field.md, "A colour
-    /// network for scene fields"). Asked for, not the default, until removal and the
-    /// unbounded captures are measured with it.
-    pub scene_net_features: usize,
+    /// A scene field's colour network features (Some(0): SH colour; None: the space's default,
+    /// [`scene_net_default`]), one hidden layer of `net_hidden`, the view direction to
+    /// `net_sh_degree`.
+    pub scene_net_features: Option<usize>,
     /// An object field trained on fewer views keeps its schedule when the memory budget
     /// coarsens the first stage ([`TrainConfig::stages_when_capped`] is not taken): a finer
     /// finest grid holds between many views but overfits few. Lego (100 views) 800^2 in 20
@@ -110,7 +106,7 @@ impl SetupConfig {
         let bases = if self.net_reflect { 2 } else { 1 };
         let direction_inputs = bases * super::sh::sh_coeffs(self.net_sh_degree);
         let most = (MAX_INPUTS - direction_inputs).min(MAX_CHANNELS - 1);
-        for features in [self.net_features, self.scene_net_features] {
+        for features in [self.net_features, self.scene_net_features.unwrap_or(0)] {
             if features > most || (features > 0 && self.net_hidden == 0) {
                 return Err(crate::error::Error::invalid(format!(
                     "a colour network takes 1 to {most} features and 1 to {MAX_HIDDEN} hidden units at SH degree {} (asked for {} and {})",
@@ -225,7 +221,7 @@ impl Default for SetupConfig {
             net_hidden2: 32,
             net_hidden2_min_view_pixels: 100_000,
             net_min_views: 80,
-            scene_net_features: 0,
+            scene_net_features: None,
             fine_min_views: 80,
             voxels_per_pixel: 1.0,
             large_model_passes: 15.0,
@@ -320,6 +316,20 @@ pub fn prepare(
     Ok((plan.trainer(field, setup, cfg), rays, report))
 }
 
+/// A scene field's colour network features when none are asked for: 9 for a forward capture
+/// (NDC), SH colour in the other spaces. On the LLFF captures the network fits and holds out
+/// better at about the same rays a second: fern 23.04 -> 23.45 dB held out in 300 s, horns
+/// 24.50 -> 25.10 in 600 s, fern / flower 22.66 -> 23.13 / 24.08 -> 24.89 at 3000 steps.
+/// On the demo ring (box) it gained 0.5 dB but at 0.8x the rays a second, and removal and
+/// the unbounded captures were not measured with it (examples/results/scene_field.md, "A
+/// colour network on forward captures").
+pub fn scene_net_default(space: &Space) -> usize {
+    match space {
+        Space::Ndc(_) => 9,
+        _ => 0,
+    }
+}
+
 /// Build the trainer for a scene field in `space` (box in space coordinates, the pixel
 /// footprint there): every cell occupied until pruned, rays that carry no loss (alpha 0: a
 /// removed object's pixels) left out.
@@ -331,7 +341,9 @@ pub fn prepare_scene(
     seeds: &[(Vec3, [u8; 3])],
 ) -> Result<(Trainer, RaySet, SetupReport)> {
     setup.check()?;
-    let net = setup.scene_net_features;
+    let net = setup
+        .scene_net_features
+        .unwrap_or_else(|| scene_net_default(&space.space));
     let setup = &SetupConfig {
         net_features: net,
         // The network's view input is the field's SH degree; one hidden layer.
