@@ -79,7 +79,8 @@ fn forward_demo_writes_llff_poses_of_the_same_cameras() {
 }
 
 /// An LLFF capture is its poses and bounds alone (no sparse model): a scene field still trains
-/// on it at the defaults, its NDC near plane and its stereo depth ranges from the bounds.
+/// on it at the defaults, its NDC near plane and its stereo depth ranges from the bounds, and
+/// it is coloured by a network ([`objnerf::field::session::scene_net_default`]).
 #[test]
 fn llff_poses_alone_train_a_scene_field() {
     let dir = tempfile::tempdir().unwrap();
@@ -96,13 +97,17 @@ fn llff_poses_alone_train_a_scene_field() {
         fit.space_choice()
     );
     fit.train(&opts.fit.stop_rule(), &mut |_| {});
-    let report = fit.finish().report;
+    let fitted = fit.finish();
+    let report = fitted.report;
     assert!(report.depth_targets > 0, "no stereo depth without points");
     assert_eq!(report.run.steps, 20);
+    // A forward capture's default colour: a network of 9 features (SH on a ring).
+    let net = fitted.trainer.field.net.map_or(0, |n| n.features);
+    assert_eq!(net, 9, "forward capture's colour network features");
 }
 
 /// A scene field asked for a colour network (`--colour-net N` with `--scene-field`) is coloured
-/// by one of N features and trains; without the ask it takes SH colour.
+/// by one of N features and trains; without the ask the ring (box space) takes SH colour.
 #[test]
 fn a_scene_field_takes_a_colour_network_when_asked() {
     let dir = tempfile::tempdir().unwrap();
