@@ -322,7 +322,7 @@ pub fn prepare(
 /// 24.50 -> 25.10 in 600 s, fern / flower 22.66 -> 23.13 / 24.08 -> 24.89 at 3000 steps.
 /// On the demo ring (box) it gained 0.5 dB but at 0.8x the rays a second, and removal and
 /// the unbounded captures were not measured with it (examples/results/scene_field.md, "A
-/// colour network on forward captures").
+/// colour network and shorter rays on forward captures").
 pub fn scene_net_default(space: &Space) -> usize {
     match space {
         Space::Ndc(_) => 9,
