@@ -46,6 +46,33 @@ fn each_layout_gets_its_space() {
     }
 }
 
+/// A capture with poses alone (no tracked points, depth images or bounds) still keeps its grid
+/// clear near the cameras: half the way to the cameras' focus (without it fox from `transforms.json` grew fog in front
+/// of its cameras, held out 11.7 dB; examples/results/scene_field.md).
+#[test]
+fn a_capture_with_poses_alone_has_a_near_clip() {
+    let dir = tempfile::tempdir().unwrap();
+    let ring = demo(dir.path(), DemoLayout::Ring, 12);
+    let with_points = Scene::load(&ring).unwrap();
+    let mut poses_alone = with_points.clone();
+    poses_alone.points.clear();
+    for im in &mut poses_alone.images {
+        im.features.clear();
+        im.depth_path = None;
+        im.depth_bounds = None;
+    }
+    let clip = |s: &Scene| choose_space(s, SpaceChoice::Auto, 1).unwrap().near_clip;
+    let (a, b) = (clip(&with_points), clip(&poses_alone));
+    assert!(a > 0.0, "near clip from the points: {a}");
+    // The ring's cameras stand ~2 m from the objects at its centre.
+    assert!(b > 0.3 && b < 1.5, "near clip from the cameras' focus: {b}");
+    if let Some(fox) = common::shared_data("fox") {
+        let s = Scene::load(&fox.join("transforms.json")).unwrap();
+        assert!(s.points.is_empty());
+        assert!(clip(&s) > 0.0, "fox from transforms.json");
+    }
+}
+
 /// The forward-facing demo's LLFF `poses_bounds.npy` gives the COLMAP model's cameras, every
 /// camera faces the scene, and its bounds enclose what the views see.
 #[test]

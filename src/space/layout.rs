@@ -85,9 +85,12 @@ pub struct SpaceSetup {
 /// percentile of each view's tracked points' depths, least over the views).
 pub const NEAR_CLIP_FRACTION: f64 = 0.5;
 
-/// World distance from the cameras that holds no scene ([`SpaceSetup::near_clip`]): 0 without
-/// tracked points.
-fn near_clip(scene: &Scene) -> f32 {
+/// World distance from the cameras that holds no scene ([`SpaceSetup::near_clip`]). A capture
+/// with poses alone (no tracked points, depth images or bounds) takes the cameras' focus as
+/// its nearest surface: fox from `transforms.json` grew fog in front of its cameras without
+/// it (3000 steps at downscale 4: held out 11.71 -> 22.70 dB; examples/results/scene_field.md,
+/// "Fox's fog: no near clip without points").
+fn near_clip(scene: &Scene, focus: DVec3) -> f32 {
     let near = scene
         .images
         .iter()
@@ -102,6 +105,21 @@ fn near_clip(scene: &Scene) -> f32 {
             quantile(depths, 0.05)
         })
         .fold(f64::MAX, f64::min);
+    // Depth images or bounds say where the near surfaces are; with neither, the focus stands in.
+    let measured = scene
+        .images
+        .iter()
+        .any(|im| im.depth_path.is_some() || im.depth_bounds.is_some());
+    let near = if near == f64::MAX && !measured {
+        scene
+            .images
+            .iter()
+            .map(|im| im.pose.world_to_camera(focus).z)
+            .filter(|z| *z > 0.0)
+            .fold(f64::MAX, f64::min)
+    } else {
+        near
+    };
     if near == f64::MAX {
         0.0
     } else {
@@ -255,7 +273,7 @@ fn box_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> Result
         box_min: lo.as_vec3(),
         box_max: hi.as_vec3(),
         pixel_footprint: footprint_at(scene, focus, downscale) as f32,
-        near_clip: near_clip(scene),
+        near_clip: near_clip(scene, focus),
         why: format!(
             "{reason}; box {:.2} x {:.2} x {:.2} from the sparse points and cameras",
             hi.x - lo.x,
@@ -279,7 +297,7 @@ fn unbounded_setup(scene: &Scene, l: Layout, reason: String, downscale: u32) -> 
         box_min: Vec3::splat(-2.0),
         box_max: Vec3::splat(2.0),
         pixel_footprint: foot as f32,
-        near_clip: near_clip(scene),
+        near_clip: near_clip(scene, focus),
         why: format!(
             "{reason}; contraction about the cameras' focus ({:.2}, {:.2}, {:.2}), inner radius {radius:.2} (1.1x the farthest camera)",
             focus.x, focus.y, focus.z
