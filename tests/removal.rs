@@ -47,8 +47,9 @@ fn each_layout_gets_its_space() {
 }
 
 /// A capture with poses alone (no tracked points, depth images or bounds) still keeps its grid
-/// clear near the cameras: half the way to the cameras' focus (without it fox from `transforms.json` grew fog in front
-/// of its cameras, held out 11.7 dB; examples/results/scene_field.md).
+/// clear near the cameras: half the way to the cameras' focus (without it fox from
+/// `transforms.json` grew fog in front of its cameras, held out 11.7 dB;
+/// examples/results/scene_field.md).
 #[test]
 fn a_capture_with_poses_alone_has_a_near_clip() {
     let dir = tempfile::tempdir().unwrap();
@@ -134,7 +135,7 @@ fn llff_poses_alone_train_a_scene_field() {
 }
 
 /// A scene field asked for a colour network (`--colour-net N` with `--scene-field`) is coloured
-/// by one of N features and trains; without the ask the ring (box space) takes SH colour.
+/// by one of N features and trains; asked for 0 the ring (box space) takes SH colour.
 #[test]
 fn a_scene_field_takes_a_colour_network_when_asked() {
     let dir = tempfile::tempdir().unwrap();

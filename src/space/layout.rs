@@ -91,40 +91,31 @@ pub const NEAR_CLIP_FRACTION: f64 = 0.5;
 /// it (3000 steps at downscale 4: held out 11.71 -> 22.70 dB; examples/results/scene_field.md,
 /// "Fox's fog: no near clip without points").
 fn near_clip(scene: &Scene, focus: DVec3) -> f32 {
-    let near = scene
-        .images
-        .iter()
-        .filter_map(|im| {
-            let depths: Vec<f64> = im
-                .features
-                .iter()
-                .filter_map(|f| f.point)
-                .map(|p| im.pose.world_to_camera(scene.points[p].xyz).z)
-                .filter(|z| *z > 0.0)
-                .collect();
-            quantile(depths, 0.05)
-        })
-        .fold(f64::MAX, f64::min);
+    // The least over the views of a depth each gives (None: no view gives one).
+    let least = |depth: &dyn Fn(&crate::scene::ImageView) -> Option<f64>| {
+        scene.images.iter().filter_map(depth).reduce(f64::min)
+    };
+    let nearest_points = least(&|im| {
+        let depths: Vec<f64> = im
+            .features
+            .iter()
+            .filter_map(|f| f.point)
+            .map(|p| im.pose.world_to_camera(scene.points[p].xyz).z)
+            .filter(|z| *z > 0.0)
+            .collect();
+        quantile(depths, 0.05)
+    });
     // Depth images or bounds say where the near surfaces are; with neither, the focus stands in.
     let measured = scene
         .images
         .iter()
         .any(|im| im.depth_path.is_some() || im.depth_bounds.is_some());
-    let near = if near == f64::MAX && !measured {
-        scene
-            .images
-            .iter()
-            .map(|im| im.pose.world_to_camera(focus).z)
-            .filter(|z| *z > 0.0)
-            .fold(f64::MAX, f64::min)
-    } else {
-        near
-    };
-    if near == f64::MAX {
-        0.0
-    } else {
-        (NEAR_CLIP_FRACTION * near) as f32
-    }
+    let near = nearest_points.or_else(|| {
+        (!measured)
+            .then(|| least(&|im| Some(im.pose.world_to_camera(focus).z).filter(|z| *z > 0.0)))
+            .flatten()
+    });
+    near.map_or(0.0, |n| (NEAR_CLIP_FRACTION * n) as f32)
 }
 
 /// Measure the layout of `scene`'s cameras and points.
