@@ -22,6 +22,72 @@ fn demo(dir: &Path, layout: DemoLayout, views: usize) -> PathBuf {
     out
 }
 
+/// Turntables show the sides the photos saw: all the way round the ring demo's mug; on the
+/// forward demo, a sweep whose every frame looks from within the cameras' span of directions
+/// (before, a forward capture's turntable spent most frames on sides no photo saw), at their
+/// elevation.
+#[test]
+fn turntables_follow_the_cameras_of_each_layout() {
+    use glam::DVec3;
+    use objnerf::render::{turntable_views, Orbit, TurntableOptions};
+    let dir = tempfile::tempdir().unwrap();
+    for layout in [DemoLayout::Ring, DemoLayout::Forward] {
+        let path = demo(dir.path(), layout, 12);
+        let scene = Scene::load(&path).unwrap();
+        let truth = read_truth(&path).unwrap();
+        let mug = truth.iter().find(|t| t.name == "mug").unwrap();
+        let (lo, hi) = (
+            DVec3::from_array(mug.bbox_min),
+            DVec3::from_array(mug.bbox_max),
+        );
+        let centre = 0.5 * (lo + hi);
+        let (up, _) = scene.up();
+        let cameras: Vec<DVec3> = scene.images.iter().map(|im| im.pose.center()).collect();
+        let orbit = Orbit::following(centre, up, &cameras, None);
+        // Directions about up, as angles from the cameras' mean direction (no wrap for a
+        // forward capture, whose cameras all face one side).
+        let flat = |c: DVec3| {
+            let d = c - centre;
+            (d - up * d.dot(up)).normalize()
+        };
+        let mean = cameras.iter().map(|c| flat(*c)).sum::<DVec3>().normalize();
+        let angle = |c: DVec3| {
+            let d = flat(c);
+            up.dot(mean.cross(d)).atan2(mean.dot(d)).to_degrees()
+        };
+        let spans = cameras.iter().map(|c| angle(*c));
+        let (min, max) = spans.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+        let views = turntable_views(lo, hi, up, &orbit, &TurntableOptions::default());
+        println!("{layout}: {orbit:?}, cameras {min:.1}..{max:.1} deg");
+        match layout {
+            DemoLayout::Ring => assert_eq!(orbit.arc_deg, 360.0, "{orbit:?}"),
+            _ => {
+                assert!(orbit.arc_deg < 180.0, "{orbit:?}");
+                for v in &views {
+                    let a = angle(v.pose.center());
+                    assert!(
+                        (min - 1e-6..=max + 1e-6).contains(&a),
+                        "{} looks from {a:.1} deg, outside the cameras' {min:.1}..{max:.1}",
+                        v.name
+                    );
+                }
+            }
+        }
+        let elevations: Vec<f64> = cameras
+            .iter()
+            .map(|c| (*c - centre).normalize().dot(up).asin().to_degrees())
+            .collect();
+        let (lo_e, hi_e) = elevations
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        assert!(
+            (lo_e..=hi_e).contains(&orbit.elevation_deg),
+            "{layout}: elevation {} outside the cameras' {lo_e:.1}..{hi_e:.1}",
+            orbit.elevation_deg
+        );
+    }
+}
+
 /// `--space auto` picks box for the ring demo, forward for the forward-facing demo (COLMAP and
 /// its LLFF file alike), unbounded for fox (a room, every camera facing the wall).
 #[test]

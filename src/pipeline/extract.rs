@@ -27,7 +27,7 @@ use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
 use crate::mesh::textured::{export_mesh, ExportReport};
 use crate::mesh::{gltf::write_glbs, io::write_mesh, Mesh};
 use crate::pipeline::extract_checks::{check_views, field_warnings, mesh_warnings};
-use crate::render::{write_turntable, TurntableOptions};
+use crate::render::{write_turntable, Orbit, TurntableOptions};
 use crate::sam::Segmenter;
 use crate::scene::Scene;
 use crate::segment::output::masks_dir;
@@ -105,6 +105,8 @@ pub struct ObjectReport {
     /// The object's own glTF frame (`mesh.glb`): origin and scale.
     pub frame: GltfFrame,
     pub mesh_seconds: f64,
+    /// Where the turntable's cameras went (the training cameras' elevation and arc).
+    pub turntable: Orbit,
     pub render_seconds: f64,
     pub model: PathBuf,
     pub mesh_glb: PathBuf,
@@ -313,13 +315,22 @@ fn extract_object(
     );
     let gif = dir.join("turntable.gif");
     let (lo, hi) = mesh.bounds();
+    let box_ = (
+        glam::Vec3::from(lo).as_dvec3(),
+        glam::Vec3::from(hi).as_dvec3(),
+    );
+    let seen_from: Vec<DVec3> = mesh_opts.seen_from.iter().map(|c| c.as_dvec3()).collect();
+    let orbit = Orbit::following(
+        0.5 * (box_.0 + box_.1),
+        up,
+        &seen_from,
+        opts.turntable.elevation_deg,
+    );
     write_turntable(
         field,
-        (
-            glam::Vec3::from(lo).as_dvec3(),
-            glam::Vec3::from(hi).as_dvec3(),
-        ),
-        DVec3::from_array(frame.up),
+        box_,
+        up,
+        &orbit,
         &opts.turntable,
         [1.0; 3],
         &dir.join("turntable"),
@@ -337,6 +348,7 @@ fn extract_object(
         export,
         frame: object_frame,
         mesh_seconds,
+        turntable: orbit,
         render_seconds: t.elapsed().as_secs_f64(),
         model: run.final_path(&model),
         mesh_glb: run.final_path(&dir.join("mesh.glb")),

@@ -23,7 +23,8 @@ use crate::field::view::View;
 use crate::removal::periods::periodic_shifts;
 use crate::util::inpaint::inpaint_harmonic;
 use crate::util::mask::{components, dilate_bits, NO_COMPONENT};
-use glam::{DMat3, DVec3, Vec2, Vec3};
+use crate::util::spread::Spread;
+use glam::{DVec3, Vec2, Vec3};
 
 /// A pixel lies on the fitted plane when its rendered depth is within this fraction of the
 /// plane's depth there (the trained field's depth is good to a few voxels).
@@ -207,30 +208,13 @@ fn surrounding_plane(v: &View, hole: &[bool], part: &[bool], r: &Rendered) -> Op
     })
 }
 
-/// Least-squares plane through `points`: their centroid and the direction of least spread (the
-/// covariance's smallest eigenvector, by inverse iteration from `guess`).
+/// Least-squares plane through `points`: their centroid and the direction of least spread,
+/// turned to face the same way as `guess`.
 fn fit_plane(points: &[DVec3], guess: DVec3) -> Option<(DVec3, DVec3)> {
-    let n = points.len() as f64;
-    let centroid = points.iter().copied().sum::<DVec3>() / n;
-    let mut cov = DMat3::ZERO;
-    for p in points {
-        let q = *p - centroid;
-        cov += DMat3::from_cols(q * q.x, q * q.y, q * q.z);
-    }
-    let scale = cov.x_axis.x + cov.y_axis.y + cov.z_axis.z;
-    if scale <= 0.0 {
-        return None;
-    }
-    let shifted = cov / scale + DMat3::IDENTITY * 1e-9;
-    if shifted.determinant().abs() < 1e-18 {
-        return None;
-    }
-    let inverse = shifted.inverse();
-    let mut normal = guess.normalize();
-    for _ in 0..32 {
-        normal = (inverse * normal).try_normalize()?;
-    }
-    Some((centroid, normal))
+    let spread = Spread::of(points)?;
+    spread.flatness()?;
+    let normal = spread.normal() * spread.normal().dot(guess).signum();
+    Some((spread.centroid, normal))
 }
 
 /// Which pixels of `v` show the plane outside the hole: rendered opaque at the plane's depth.

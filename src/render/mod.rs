@@ -8,5 +8,5 @@ pub mod gpu;
 pub mod turntable;
 pub mod views;
 
-pub use turntable::{turntable_views, write_turntable, TurntableOptions};
+pub use turntable::{turntable_views, write_turntable, Orbit, TurntableOptions};
 pub use views::{evaluate_model, render_scene_views};

@@ -8,6 +8,7 @@
 //! each computed once from whichever the source gave, so reading and writing the same format
 //! reproduces its numbers bit for bit.
 
+use crate::util::spread::Spread;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
 use serde::{Deserialize, Serialize};
 
@@ -199,18 +200,67 @@ fn check_rigid(r: DMat3) -> Result<(), String> {
     Ok(())
 }
 
-/// The world's up direction from the cameras (people hold cameras upright): the mean of their
-/// up vectors (-y of the OpenCV camera), snapped to a world axis when within 15 degrees of one.
-/// Returns it with a sentence saying how it was found.
+/// The world's up direction from the cameras, with a sentence saying how it was found.
+///
+/// People hold cameras upright, so the mean of the cameras' up vectors (-y of the OpenCV camera)
+/// is near up; but it leans by however much the cameras tilted, and a walk-around looking down
+/// at an object tilts it toward the object on every side unevenly. People also walk around
+/// at about one height: where the centres lie near a plane ([`RING_FLATNESS`]) whose normal is
+/// within [`RING_MAX_TILT_DEG`] of the mean up (not a forward capture's plane of positions,
+/// which faces the scene), that plane's normal is up. Up is snapped to a world axis within
+/// [`SNAP_DEG`] of one (synthetic and Blender captures are axis-aligned), a ring's normal only
+/// within [`RING_SNAP_DEG`] (it measures up well, and a COLMAP world's axes are arbitrary).
 pub fn up_from_cameras<'a>(poses: impl IntoIterator<Item = &'a Pose>) -> (DVec3, String) {
     let mut sum = DVec3::ZERO;
+    let mut centres = Vec::new();
     for pose in poses {
         sum -= pose.c2w_rotation().col(1);
+        centres.push(pose.center());
     }
     if sum.length() < 1e-9 {
         return (DVec3::Z, "no camera agrees on up: assumed +Z".into());
     }
     let mean = sum.normalize();
+    if let Some((normal, flatness)) = ring_normal(&centres, mean) {
+        let tilt = normal.dot(mean).clamp(-1.0, 1.0).acos().to_degrees();
+        let how = format!(
+            "the normal of the plane the cameras moved round in (spread across it {:.0}% of the \
+             least within it; {tilt:.1} deg from their mean up)",
+            100.0 * flatness
+        );
+        return snap_to_axis(normal, RING_SNAP_DEG, &how);
+    }
+    snap_to_axis(mean, SNAP_DEG, "the cameras' mean up")
+}
+
+/// Centres this flat (the spread across their plane over the least spread within it) may be
+/// one walk round at about one height: a hand-held walk-around rises and dips, and the phone
+/// capture of a can measured here is 0.42.
+pub const RING_FLATNESS: f64 = 0.5;
+/// The most a ring's normal may lean from the cameras' mean up. Cameras looking down lean
+/// their up vectors toward the object; over a walk round that does not go evenly all the way
+/// the lean does not cancel (22 degrees on that can, looking down at 30).
+pub const RING_MAX_TILT_DEG: f64 = 35.0;
+/// Snapping tolerances: the mean up's, and a ring normal's (it measures up well, and a
+/// COLMAP world's axes say nothing about up).
+pub const SNAP_DEG: f64 = 15.0;
+pub const RING_SNAP_DEG: f64 = 5.0;
+
+/// The normal of the plane the centres lie in, facing like `mean_up`, and the flatness, where
+/// they make a ring: at least 8 cameras, flat, and the normal near the mean up.
+fn ring_normal(centres: &[DVec3], mean_up: DVec3) -> Option<(DVec3, f64)> {
+    if centres.len() < 8 {
+        return None;
+    }
+    let spread = Spread::of(centres)?;
+    let flatness = spread.flatness()?;
+    let normal = spread.normal() * spread.normal().dot(mean_up).signum();
+    let tilt = normal.dot(mean_up).clamp(-1.0, 1.0).acos().to_degrees();
+    (flatness <= RING_FLATNESS && tilt <= RING_MAX_TILT_DEG).then_some((normal, flatness))
+}
+
+/// `dir`, or the world axis nearest it when within `tolerance_deg`; with the sentence.
+fn snap_to_axis(dir: DVec3, tolerance_deg: f64, how: &str) -> (DVec3, String) {
     let axes = [
         (DVec3::X, "+X"),
         (DVec3::NEG_X, "-X"),
@@ -221,20 +271,20 @@ pub fn up_from_cameras<'a>(poses: impl IntoIterator<Item = &'a Pose>) -> (DVec3,
     ];
     let (best, name) = axes
         .into_iter()
-        .max_by(|a, b| a.0.dot(mean).total_cmp(&b.0.dot(mean)))
+        .max_by(|a, b| a.0.dot(dir).total_cmp(&b.0.dot(dir)))
         .expect("six axes");
-    let angle = best.dot(mean).clamp(-1.0, 1.0).acos().to_degrees();
-    if angle <= 15.0 {
+    let angle = best.dot(dir).clamp(-1.0, 1.0).acos().to_degrees();
+    if angle <= tolerance_deg {
         (
             best,
-            format!("the cameras' mean up is {angle:.1} deg from world {name}: snapped to it"),
+            format!("{how} is {angle:.1} deg from world {name}: snapped to it"),
         )
     } else {
         (
-            mean,
+            dir,
             format!(
-                "the cameras' mean up ({:.3}, {:.3}, {:.3}) is {angle:.1} deg from the nearest axis: used as is",
-                mean.x, mean.y, mean.z
+                "{how} ({:.3}, {:.3}, {:.3}) is {angle:.1} deg from the nearest axis: used as is",
+                dir.x, dir.y, dir.z
             ),
         )
     }
@@ -270,6 +320,54 @@ mod tests {
         let gl = p.c2w_opengl();
         let back = Pose::from_c2w_opengl(gl).unwrap();
         assert_eq!(back.c2w_opengl(), gl);
+    }
+
+    /// Cameras at `height` above the plane through the origin normal to `up`, `count` of them
+    /// over `arc_deg` of azimuth, all looking at the origin.
+    fn walk_around(up: DVec3, height: f64, count: usize, arc_deg: f64) -> Vec<Pose> {
+        let side = up.any_orthonormal_vector();
+        let fwd = up.cross(side);
+        (0..count)
+            .map(|i| {
+                let a = (arc_deg * i as f64 / count as f64).to_radians();
+                let c = (side * a.cos() + fwd * a.sin()) * 2.0 + up * height;
+                Pose::look_at(c, DVec3::ZERO, up)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_walk_around_looking_down_finds_up_from_its_ring() {
+        // A COLMAP-like world: up 10 degrees off -Y. Half a walk round, looking down at about
+        // 40 degrees: each camera's up leans toward the object, so their mean leans too.
+        let up = DQuat::from_rotation_x(10f64.to_radians()) * DVec3::NEG_Y;
+        let poses = walk_around(up, 1.7, 30, 180.0);
+        let mean: DVec3 = poses
+            .iter()
+            .map(|p| -p.c2w_rotation().col(1))
+            .sum::<DVec3>()
+            .normalize();
+        assert!(mean.angle_between(up).to_degrees() > 5.0);
+        let (found, why) = up_from_cameras(&poses);
+        assert!(found.angle_between(up).to_degrees() < 0.01, "{found} {why}");
+        assert!(why.contains("plane"), "{why}");
+    }
+
+    #[test]
+    fn an_axis_aligned_ring_snaps_and_a_forward_capture_keeps_the_mean_up() {
+        let (found, why) = up_from_cameras(&walk_around(DVec3::Z, 1.0, 24, 360.0));
+        assert_eq!(found, DVec3::Z, "{why}");
+        // A forward capture: positions in a plane facing the scene (its normal is the view
+        // direction, not up), every camera upright.
+        let poses: Vec<Pose> = (0..20)
+            .map(|i| {
+                let c = DVec3::new((i % 5) as f64 * 0.1, 0.0, (i / 5) as f64 * 0.05);
+                Pose::look_at(c, c + DVec3::Y * 5.0, DVec3::Z)
+            })
+            .collect();
+        let (found, why) = up_from_cameras(&poses);
+        assert_eq!(found, DVec3::Z, "{why}");
+        assert!(why.contains("mean up"), "{why}");
     }
 
     #[test]

@@ -48,6 +48,9 @@ pub struct SceneInfo {
     pub point_bounds: Option<Bounds>,
     pub has_masks: bool,
     pub has_depth: bool,
+    /// The world's up direction from the cameras ([`Scene::up`]), and how it was found.
+    pub up: [f64; 3],
+    pub up_why: String,
     pub images: Vec<ImageInfo>,
 }
 
@@ -95,6 +98,7 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
             max: hi.to_array(),
         })
     };
+    let (up, up_why) = scene.up();
     SceneInfo {
         source: scene.source.display().to_string(),
         format: format!("{:?}", scene.format),
@@ -109,6 +113,8 @@ pub fn scene_info(scene: &Scene) -> SceneInfo {
         point_bounds: b(pts),
         has_masks: scene.images.iter().any(|i| i.mask_path.is_some()),
         has_depth: scene.images.iter().any(|i| i.depth_path.is_some()),
+        up: up.to_array(),
+        up_why,
         images,
     }
 }
@@ -190,6 +196,11 @@ impl SceneInfo {
             "masks      {}\ndepth      {}",
             if self.has_masks { "yes" } else { "no" },
             if self.has_depth { "yes" } else { "no" }
+        );
+        let _ = writeln!(
+            s,
+            "up         ({:.3}, {:.3}, {:.3}): {}",
+            self.up[0], self.up[1], self.up[2], self.up_why
         );
         s
     }

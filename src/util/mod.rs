@@ -1,5 +1,5 @@
 //! Small shared helpers, used by every stage: atomic file output, benchmark charts, named option enums, hashes, binary masks,
-//! inpainting, grid neighbours, memory, paths, progress reporting, a seeded random generator, order statistics,
+//! inpainting, grid neighbours, memory, paths, progress reporting, a seeded random generator, points' principal axes, order statistics,
 //! the self-checks' warnings.
 
 pub mod atomic;
@@ -15,6 +15,7 @@ pub mod mem;
 pub mod paths;
 pub mod progress;
 pub mod rng;
+pub mod spread;
 pub mod stats;
 pub mod warnings;
 
