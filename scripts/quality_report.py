@@ -42,12 +42,18 @@ def main():
             {k: f[k] for k in ("figure", "value", "floor", "higher_is_better", "pass")}
             for f in figures if f["test"] == name
         ]
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    dirty = bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                                capture_output=True, text=True).stdout.strip())
+    # Each record names the commit it measured (older records without one: the report's).
+    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    for r in runs:
+        r.setdefault("commit", head)
+        r.setdefault("dirty", False)
+    commits = sorted({r["commit"] for r in runs}, key=lambda c: -sum(r["commit"] == c for r in runs))
+    commit = commits[0] if commits else head
+    dirty = any(r["dirty"] for r in runs)
     skipped = (work / "skipped.txt").read_text().splitlines() if (work / "skipped.txt").exists() else []
     report = {
-        "command": "bash scripts/quality", "git_commit": commit, "dirty": dirty,
+        "command": "bash scripts/quality", "git_commit": commit, "git_commits": commits,
+        "dirty": dirty,
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "machine": machine(), "load_average_end": os.getloadavg()[0],
         "passed": sum(r["pass"] for r in runs), "failed": sum(not r["pass"] for r in runs),
@@ -56,7 +62,8 @@ def main():
     tmp = out / "quality.json.tmp"
     tmp.write_text(json.dumps(report, indent=2) + "\n")
     tmp.replace(out / "quality.json")
-    md = [f"# Quality run\n\n`bash scripts/quality` at {commit[:12]}{' (dirty)' if dirty else ''}, "
+    md = [f"# Quality run\n\n`bash scripts/quality` at {', '.join(c[:12] for c in commits)}"
+          f"{' (dirty)' if dirty else ''} (each test's commit in quality.json), "
           f"{report['date']}, {report['machine']['cpu']} ({report['machine']['cores']} cores); "
           f"{report['passed']} passed, {report['failed']} failed.\n",
           "| test | figure | value | floor | pass | s | MiB |", "|---|---|---|---|---|---|---|"]
