@@ -10,7 +10,7 @@
 
 use crate::field::view::View;
 use crate::scene::Scene;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 /// Plane-sweep settings.
@@ -57,8 +57,12 @@ pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions)
         return 0;
     }
     let grey: Vec<Vec<f32>> = views.par_iter().map(View::luma).collect();
+    // A capture with neither points nor bounds sweeps around where its cameras look.
+    let focus = crate::space::layout::layout(scene)
+        .ok()
+        .map(|l| DVec3::from_array(l.focus));
     let ranges: Vec<Option<(f32, f32)>> = (0..views.len())
-        .map(|i| depth_range(scene, i, opts.range_margin))
+        .map(|i| depth_range(scene, i, focus, opts.range_margin))
         .collect();
     let near: Vec<Vec<usize>> = (0..views.len())
         .map(|i| neighbours(views, i, opts))
@@ -94,8 +98,9 @@ pub fn add_stereo_depth(views: &mut [View], scene: &Scene, opts: &StereoOptions)
 }
 
 /// The z-depths of the sparse points that view `i` tracks (2nd-98th percentiles), else the
-/// capture's depth bounds for it, widened.
-fn depth_range(scene: &Scene, i: usize, margin: f32) -> Option<(f32, f32)> {
+/// capture's depth bounds for it, else [`FOCUS_SPAN`] either side of the depth of `focus` (the
+/// point the cameras look at), widened by `margin`.
+fn depth_range(scene: &Scene, i: usize, focus: Option<DVec3>, margin: f32) -> Option<(f32, f32)> {
     let pose = &scene.images[i].pose;
     let mut z: Vec<f64> = scene
         .points
@@ -105,14 +110,27 @@ fn depth_range(scene: &Scene, i: usize, margin: f32) -> Option<(f32, f32)> {
         .filter(|&z| z > 0.0)
         .collect();
     if z.len() < 10 {
-        // No sparse model: the depth bounds the capture gives (LLFF), else nothing to sweep.
-        let [near, far] = scene.images[i].depth_bounds?;
+        // No sparse model: the depth bounds the capture gives (LLFF), else the focus.
+        let [near, far] = match scene.images[i].depth_bounds {
+            Some(b) => b,
+            None => {
+                let zf = pose.world_to_camera(focus?).z;
+                if zf <= 0.0 {
+                    return None;
+                }
+                [zf / FOCUS_SPAN, zf * FOCUS_SPAN]
+            }
+        };
         return Some(((near as f32) / margin, (far as f32) * margin));
     }
     z.sort_by(f64::total_cmp);
     let (lo, hi) = (z[z.len() / 50], z[z.len() - 1 - z.len() / 50]);
     Some(((lo as f32) / margin, (hi as f32) * margin))
 }
+
+/// How far nearer and farther than the focus a pose-only capture's surfaces may lie: a factor of
+/// 3 each way (an object at the focus and the wall behind it; a close-up's nearer surfaces).
+const FOCUS_SPAN: f64 = 3.0;
 
 /// The views nearest view `i` whose optical axes are within the angle limit.
 fn neighbours(views: &[View], i: usize, opts: &StereoOptions) -> Vec<usize> {
