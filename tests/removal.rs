@@ -112,6 +112,18 @@ fn each_layout_gets_its_space() {
     }
 }
 
+/// `scene` with its cameras alone: no tracked points, depth images or depth bounds.
+fn poses_alone(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    s.points.clear();
+    for im in &mut s.images {
+        im.features.clear();
+        im.depth_path = None;
+        im.depth_bounds = None;
+    }
+    s
+}
+
 /// A capture with poses alone (no tracked points, depth images or bounds) still keeps its grid
 /// clear near the cameras: half the way to the cameras' focus (without it fox from
 /// `transforms.json` grew fog in front of its cameras, held out 11.7 dB;
@@ -121,13 +133,7 @@ fn a_capture_with_poses_alone_has_a_near_clip() {
     let dir = tempfile::tempdir().unwrap();
     let ring = demo(dir.path(), DemoLayout::Ring, 12);
     let with_points = Scene::load(&ring).unwrap();
-    let mut poses_alone = with_points.clone();
-    poses_alone.points.clear();
-    for im in &mut poses_alone.images {
-        im.features.clear();
-        im.depth_path = None;
-        im.depth_bounds = None;
-    }
+    let poses_alone = poses_alone(&with_points);
     let clip = |s: &Scene| choose_space(s, SpaceChoice::Auto, 1).unwrap().near_clip;
     let (a, b) = (clip(&with_points), clip(&poses_alone));
     assert!(a > 0.0, "near clip from the points: {a}");
@@ -149,14 +155,7 @@ fn a_capture_with_poses_alone_gets_stereo_depth() {
     use objnerf::supervision::{add_depth_targets, DepthMode};
     let dir = tempfile::tempdir().unwrap();
     let ring = demo(dir.path(), DemoLayout::Ring, 12);
-    let truth_scene = Scene::load(&ring).unwrap();
-    let mut poses_alone = truth_scene.clone();
-    poses_alone.points.clear();
-    for im in &mut poses_alone.images {
-        im.features.clear();
-        im.depth_path = None;
-        im.depth_bounds = None;
-    }
+    let poses_alone = poses_alone(&Scene::load(&ring).unwrap());
     // The same cameras from the demo's transforms.json, which names the exact depth images.
     let with_depth = Scene::load(&ring.join("transforms.json")).unwrap();
     let mut truth = load_views(&with_depth, &MaskSource::Opaque, 2).unwrap();
