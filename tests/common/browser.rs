@@ -18,16 +18,15 @@ pub fn chromium() -> Option<PathBuf> {
     }
 }
 
-/// `page#fragment` opened from the file system as a `width`x`height` window, screenshot once
-/// its scripts have had 20 s of (virtual) time. Images are off, so whatever colour the
-/// screenshot holds was drawn by the page's scripts (its WebGL viewer), not by its `<img>`s.
-pub fn screenshot(page: &Path, fragment: &str, width: u32, height: u32) -> image::RgbImage {
+/// `page` opened from the file system in a `width`x`height` window, screenshot once its
+/// scripts have had 20 s of (virtual) time. Images are off, so whatever colour the screenshot
+/// holds was drawn by the page's scripts (its WebGL viewer), not by its `<img>`s. (A page
+/// scrolled to a `#fragment` came out blank in Chromium 156's headless screenshots: make the
+/// window tall enough instead.)
+pub fn screenshot(page: &Path, width: u32, height: u32) -> image::RgbImage {
     let dir = tempfile::tempdir().unwrap();
     let shot = dir.path().join("shot.png");
-    let url = format!(
-        "file://{}#{fragment}",
-        page.canonicalize().unwrap().display()
-    );
+    let url = format!("file://{}", page.canonicalize().unwrap().display());
     let out = Command::new("chromium")
         .args([
             "--headless",
