@@ -102,7 +102,7 @@ pub fn run_demo(
     )?;
     let scores = score(&setup.scene_dir, &setup.scene, &report, &setup.truth)?;
     report.truth = Some(serde_json::to_value(&scores).map_err(|e| Error::json(&run, e))?);
-    write_report(&run.join("report.json"), &report)?;
+    write_report(&run, &report)?;
     Ok(DemoJob {
         scene_dir: setup.scene_dir.clone(),
         report,

@@ -7,6 +7,8 @@
 //! Layout of the run folder (written under a temporary name, renamed into place at the end):
 //! ```text
 //! RUN/report.json                 everything below, summarised
+//! RUN/report.html                 the same for a person, offline: scores, warnings, each object's
+//!                                 mesh in a glTF viewer (RUN/viewer/), turntable, contact sheet
 //! RUN/mesh.glb                    every object, one node each (+Y up, the capture's origin)
 //! RUN/segment/                    `objnerf segment`'s output: masks/<object>/, <object>_points.ply,
 //!                                 contact_sheet_<object>.png, report.json
@@ -19,14 +21,17 @@
 use crate::error::{Error, Result};
 use crate::field::holdout::HoldOut;
 use crate::field::MaskSource;
-use crate::fit::object_checks::HeldOutCheck;
-use crate::fit::{fit_object, model_notes, FieldKind, FitOptions, TrainReport};
+use crate::fit::{fit_object, model_notes, FieldKind, FitOptions};
 use crate::mesh::colour::view_centres;
 use crate::mesh::frame::{GltfFrame, Origin, Placement};
-use crate::mesh::from_field::{mesh_field, FieldMeshOptions, FieldMeshReport};
-use crate::mesh::textured::{export_mesh, ExportReport};
+use crate::mesh::from_field::{mesh_field, FieldMeshOptions};
+use crate::mesh::textured::export_mesh;
 use crate::mesh::{gltf::write_glbs, io::write_mesh, Mesh};
 use crate::pipeline::extract_checks::{check_views, field_warnings, mesh_warnings};
+pub use crate::pipeline::extract_report::{
+    ExtractReport, ObjectReport, SegmentationSummary, StageSeconds,
+};
+use crate::pipeline::report_html::write_report_html;
 use crate::render::{write_turntable, Orbit, TurntableOptions};
 use crate::sam::Segmenter;
 use crate::scene::Scene;
@@ -36,7 +41,6 @@ use crate::segment::{
 };
 use crate::util::{mem::peak_rss_mib, AtomicDir, Progress, Warning};
 use glam::DVec3;
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,69 +77,6 @@ impl Default for ExtractOptions {
             check_views: 3,
         }
     }
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct SegmentationSummary {
-    pub num_views: usize,
-    pub num_ok: usize,
-    pub num_obstructed: usize,
-    pub num_absent: usize,
-    pub num_points: usize,
-    /// Views segmentation marked ok (held-out ones included).
-    pub ok_views: Vec<String>,
-    /// Views left out of training because segmentation did not mark them ok.
-    pub excluded: Vec<String>,
-    /// Ok views held out of training for evaluation and the field's self-check.
-    pub held_out: Vec<String>,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct ObjectReport {
-    pub name: String,
-    pub segmentation: SegmentationSummary,
-    pub train: TrainReport,
-    pub train_seconds: f64,
-    /// The field measured on the held-out views (the self-check's figures).
-    pub held_out_check: HeldOutCheck,
-    /// The full marching-cubes mesh (`mesh.ply`).
-    pub mesh: FieldMeshReport,
-    /// The mesh in `mesh.glb`: decimation, atlas, bake, material.
-    pub export: ExportReport,
-    /// The object's own glTF frame (`mesh.glb`): origin and scale.
-    pub frame: GltfFrame,
-    pub mesh_seconds: f64,
-    /// Where the turntable's cameras went (the training cameras' elevation and arc).
-    pub turntable: Orbit,
-    pub render_seconds: f64,
-    pub model: PathBuf,
-    pub mesh_glb: PathBuf,
-    pub turntable_gif: PathBuf,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct StageSeconds {
-    pub segment: f64,
-    pub train: f64,
-    pub mesh: f64,
-    pub render: f64,
-    pub total: f64,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct ExtractReport {
-    pub scene: PathBuf,
-    pub out: PathBuf,
-    pub objects: Vec<ObjectReport>,
-    pub seconds: StageSeconds,
-    pub segment_encoder_runs: usize,
-    pub peak_rss_mib: u64,
-    pub frame: GltfFrame,
-    /// Every self-check that tripped, scene to mesh ([`crate::util::warnings`]).
-    pub warnings: Vec<Warning>,
-    /// Filled in by callers that know the truth (the demo).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub truth: Option<serde_json::Value>,
 }
 
 /// Run the whole pipeline for `prompts` on `scene`, writing `out`. `seg` is SAM; `progress`
@@ -215,7 +156,7 @@ pub fn extract(
         warnings,
         truth: None,
     };
-    write_report(&root.join("report.json"), &report)?;
+    write_report(&root, &report)?;
     dest.commit()?;
     Ok(report)
 }
@@ -390,9 +331,12 @@ fn summarise(
     }
 }
 
-pub fn write_report(path: &Path, report: &ExtractReport) -> Result<()> {
-    let json = serde_json::to_string_pretty(report).map_err(|e| Error::json(path, e))?;
-    crate::util::atomic::write_bytes_atomic(path, json.as_bytes())
+/// Write `run/report.json` and `run/report.html` (which reads the objects' meshes from `run`).
+pub fn write_report(run: &Path, report: &ExtractReport) -> Result<()> {
+    let path = run.join("report.json");
+    let json = serde_json::to_string_pretty(report).map_err(|e| Error::json(&path, e))?;
+    crate::util::atomic::write_bytes_atomic(&path, json.as_bytes())?;
+    write_report_html(run, report)
 }
 
 /// Where `extract` put an object's masks, given the run folder.

@@ -7,8 +7,10 @@ pub mod demo;
 pub mod edit_fields;
 pub mod extract;
 pub mod extract_checks;
+pub mod extract_report;
 pub mod remove;
 pub mod render_edit;
+pub mod report_html;
 pub mod train;
 
 pub use extract::{extract, ExtractOptions, ExtractReport};
