@@ -103,33 +103,25 @@ impl Orbit {
             return Orbit::full(elevation);
         };
         az.sort_by(f64::total_cmp);
-        // The widest gap between neighbouring azimuths, the last wrapping round to the first.
-        let (gap, gap_end) = (0..az.len())
-            .map(|i| {
-                let next = az[(i + 1) % az.len()];
-                ((next - az[i]).rem_euclid(360.0), next)
-            })
-            .map(|(g, end)| {
-                if az.len() == 1 {
-                    (360.0, end)
-                } else {
-                    (g, end)
-                }
+        // The widest gap between neighbouring azimuths, the last wrapping round to the first
+        // (a lone camera leaves a gap of 360).
+        let n = az.len();
+        let (gap, gap_end) = (0..n)
+            .map(|i| match az.get(i + 1) {
+                Some(&next) => (next - az[i], next),
+                None => (az[0] + 360.0 - az[i], az[0]),
             })
             .max_by(|a, b| a.0.total_cmp(&b.0))
             .expect("one azimuth at least");
-        if gap <= FULL_ORBIT_MAX_GAP_DEG {
-            Orbit {
-                elevation_deg: elevation,
-                start_deg: first,
-                arc_deg: 360.0,
-            }
+        let (start_deg, arc_deg) = if gap <= FULL_ORBIT_MAX_GAP_DEG {
+            (first, 360.0)
         } else {
-            Orbit {
-                elevation_deg: elevation,
-                start_deg: gap_end,
-                arc_deg: 360.0 - gap,
-            }
+            (gap_end, 360.0 - gap)
+        };
+        Orbit {
+            elevation_deg: elevation,
+            start_deg,
+            arc_deg,
         }
     }
 
