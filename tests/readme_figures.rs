@@ -2,6 +2,9 @@
 //! `<!--quality:ID-->` must be in `examples/results/quality.json` (written by `bash
 //! scripts/quality`) under that ID, with the value the README prints (to its printed decimals),
 //! and from a run in which that figure's test passed. The README names the commit of that run.
+//! And the README quotes no measured figure (dB, MiB, GiB, frames/s, rays/s) without a marker:
+//! figures measured elsewhere live in `examples/results/` and `docs/`, which the README points to.
+//! A threshold (a number after ≥, ≤, < or >) is a floor, not a measurement.
 
 mod common;
 
@@ -77,6 +80,71 @@ fn marked_readme_figures_are_in_the_quality_run() {
         }
     }
     assert!(wrong.is_empty(), "README figures: {wrong:#?}");
+}
+
+/// The units of measured figures the README may quote only with a marker.
+const MEASURED_UNITS: [&str; 5] = ["dB", "MiB", "GiB", "frames/s", "rays/s"];
+
+/// Every measured figure in `text` with no marker between its number and its unit, as the text
+/// around it, except thresholds (a number after ≥, ≤, < or >).
+fn unmarked_figures(text: &str) -> Vec<String> {
+    let chars: Vec<char> = text.chars().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < chars.len() {
+        let starts_number = chars[i].is_ascii_digit()
+            && (i == 0 || !(chars[i - 1].is_alphanumeric() || chars[i - 1] == '.'));
+        if !starts_number {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
+            i += 1;
+        }
+        let rest: String = chars[i..chars.len().min(i + 12)].iter().collect();
+        let unit = rest.trim_start_matches(' ');
+        let measured = MEASURED_UNITS.iter().any(|u| {
+            unit.strip_prefix(u)
+                .is_some_and(|after| !after.starts_with(|c: char| c.is_alphanumeric()))
+        });
+        let before: String = chars[start.saturating_sub(3)..start].iter().collect();
+        let threshold = before
+            .trim_end()
+            .ends_with(['≥', '≤', '<', '>', '='].as_slice());
+        if measured && !threshold {
+            let from = start.saturating_sub(30);
+            let to = chars.len().min(i + 12);
+            out.push(
+                chars[from..to]
+                    .iter()
+                    .collect::<String>()
+                    .replace('\n', " "),
+            );
+        }
+    }
+    out
+}
+
+#[test]
+fn the_readme_quotes_measured_figures_only_from_the_quality_run() {
+    let readme = std::fs::read_to_string(common::repo_root().join("README.md")).unwrap();
+    let unmarked = unmarked_figures(&readme);
+    assert!(
+        unmarked.is_empty(),
+        "README figures with no <!--quality:ID--> marker (quote them from the quality run, or \
+         point to the results file that holds them): {unmarked:#?}"
+    );
+}
+
+#[test]
+fn the_figure_scanner_finds_unmarked_measurements_only() {
+    let text = "held out 26.87 dB at 3000 steps, peak 1042 MiB; 29.70<!--quality:u--> dB \
+                (floor ≥ 28 dB, warns < 24 dB); 9.0 frames/s; v2 dBm 3 dBx";
+    let found = unmarked_figures(text);
+    assert_eq!(found.len(), 3, "{found:#?}");
+    assert!(found[0].contains("26.87 dB") && found[1].contains("1042 MiB"));
+    assert!(found[2].contains("9.0 frames/s"));
 }
 
 #[test]

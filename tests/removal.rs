@@ -508,6 +508,26 @@ fn assert_removal(report: &serde_json::Value, telea: &serde_json::Value, objects
     let who = objects.join("+");
     common::figure(&format!("removal.{who}.psnr_full_db"), frame, 28.0, true);
     assert!(frame >= 28.0, "full-frame PSNR {frame:.2} < 28");
+    // Outside the holes a held-out photo shows what the background should: the score any
+    // capture gets, truth or not, held to the full frame's floor.
+    let outside = &report["held_out_outside_holes"];
+    assert_eq!(
+        outside["views"].as_u64(),
+        Some(s["views"].as_array().unwrap().len() as u64),
+        "the held-out views outside the holes: {outside}"
+    );
+    let outside = outside["psnr"].as_f64().unwrap();
+    println!("held out, outside the holes: {outside:.2} dB");
+    common::figure(
+        &format!("removal.{who}.heldout_outside_holes_db"),
+        outside,
+        28.0,
+        true,
+    );
+    assert!(
+        outside >= 28.0,
+        "held out outside the holes {outside:.2} < 28"
+    );
     for (k, o) in objects.iter().enumerate() {
         let ours = s["hole_psnr"][k][1].as_f64().unwrap();
         let base = telea[*o].as_f64().unwrap();

@@ -116,6 +116,12 @@ impl RemoveCmd {
                 100.0 * c.see_through
             );
         }
+        if let Some(c) = &r.held_out_outside_holes {
+            println!(
+                "against its {} held-out photos (outside the holes): {:.2} dB",
+                c.views, c.psnr
+            );
+        }
         if let Some(s) = &r.scores {
             println!(
                 "against the truth ({} views): PSNR {:.2} dB; inside the objects' masks (+{} px): {}",

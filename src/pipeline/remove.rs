@@ -20,7 +20,7 @@ use crate::field::eval::{psnr, Rendered};
 use crate::field::holdout::{held_out_views, HoldOut};
 use crate::field::session::StopRule;
 use crate::field::RenderOptions;
-use crate::fit::scene_checks::{check_scene_fit, measure_scene_fit};
+use crate::fit::scene_checks::{check_scene_fit, measure_scene_fit, SceneFitCheck};
 use crate::fit::{model_notes, FieldKind, SceneFit, SceneFitOptions, TrainReport};
 use crate::removal::hole::{
     fill_unseen, find_unseen, reopen_filled_surface, see_through_check, HoleFill, ViewHole,
@@ -109,6 +109,10 @@ pub struct RemoveReport {
     /// Per view (every view of the scene): the hole and the part of it no training view saw.
     pub holes: Vec<ViewHole>,
     pub scores: Option<RemovalScores>,
+    /// The background against the held-out photos outside the holes (the objects' dilated
+    /// masks), where the photo shows what the background should: a score on any capture, with
+    /// or without truth (None when no view is held out).
+    pub held_out_outside_holes: Option<SceneFitCheck>,
     pub seconds: RemoveSeconds,
     pub peak_rss_mib: u64,
     /// The removal's self-checks that tripped: the background's fit to its training views
@@ -183,6 +187,8 @@ pub fn remove(
     let holes = find_unseen(&all, &renders, observers).stats;
     // The background's fit to the views it trained on, outside the holes.
     let fit_check = measure_scene_fit(&all[..observers], &renders[..observers]);
+    let held_out_outside_holes = (observers < all.len())
+        .then(|| measure_scene_fit(&all[observers..], &renders[observers..]));
     let mut warnings = check_scene_fit(&fit_check);
     warnings.extend(see_through_check(&all, &renders));
     fitted.report.scene_fit = Some(fit_check);
@@ -209,6 +215,7 @@ pub fn remove(
         air_cells: fill.air_cells,
         holes,
         scores,
+        held_out_outside_holes,
         seconds: RemoveSeconds {
             load: t_load,
             train: t_train,
