@@ -13,7 +13,9 @@
 //!
 //! `--run` is an `objnerf demo` folder (scene/ with truth/masks, run/<object>/model.objf, and
 //! run/report.json naming the held-out views); `--model` with `--scene` scores on every
-//! `--every`-th view of a scene the model was not trained on, its mask the images' alpha.
+//! `--every`-th view of a scene the model was not trained on, its mask the images' alpha (or, with
+//! `--held-out RUN/report.json --masks RUN/segment/masks/OBJECT`, the views an extract run held
+//! out, inside their segmented masks).
 //! Writes `NAME.json` and `NAME.svg` (`--name`, default textured_mesh) into `--out` (default
 //! examples/results).
 
@@ -228,8 +230,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let json_end = stdout.rfind("\n}").map_or(stdout.len(), |i| i + 2);
     let cli_report: serde_json::Value = serde_json::from_str(&stdout[..json_end])?;
 
+    let (source, mask) = match (&run, arg(&args, "--masks")) {
+        (Some(_), _) => ("an objnerf demo run", "the true mask"),
+        (None, Some(m)) if m != "alpha" => ("a model", "the segmented mask"),
+        (None, _) => ("a model", "the images' alpha"),
+    };
     let result = serde_json::json!({
-        "what": format!("the {object} of an objnerf demo run: its full marching-cubes mesh (vertex colours) and exported meshes (decimated to a budget within a {DEFAULT_TOLERANCE_VOXELS}-voxel tolerance, UV atlas, base colour baked from the field), drawn by objnerf's rasteriser (no lighting: the unlit material) at the {} held-out views, PSNR over the pixels inside the true mask (uncovered pixels count as white); Chamfer to the full mesh with 50k samples a side", s.views.len()),
+        "what": format!("the {object} of {source}: its full marching-cubes mesh (vertex colours) and exported meshes (decimated to a budget within a {DEFAULT_TOLERANCE_VOXELS}-voxel tolerance, UV atlas, base colour baked from the field), drawn by objnerf's rasteriser (no lighting: the unlit material) at {} views it was not trained on, PSNR over the pixels inside {mask} (uncovered pixels count as white); Chamfer to the full mesh with 50k samples a side", s.views.len()),
         "command": format!("cargo run --release --example textured_mesh_bench -- {}", args[1..].join(" ")),
         "machine": machine(),
         "git_commit": git_commit(),
@@ -262,14 +269,7 @@ type Views = (PathBuf, Vec<objnerf::field::View>);
 /// A demo run's model and its held-out views with their true masks.
 fn demo_views(run: &Path, object: &str) -> Result<Views, Box<dyn std::error::Error>> {
     let scene = Scene::load(&run.join("scene"))?;
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("run/report.json"))?)?;
-    let held: Vec<String> = report["objects"][0]["segmentation"]["held_out"]
-        .as_array()
-        .ok_or("report.json names no held-out views")?
-        .iter()
-        .filter_map(|v| v.as_str().map(str::to_string))
-        .collect();
+    let held = held_out_of(&run.join("run/report.json"))?;
     let masks = MaskSource::Dir(run.join("scene/truth/masks").join(object));
     let views = load_views(&scene, &masks, 1)?
         .into_iter()
@@ -278,8 +278,22 @@ fn demo_views(run: &Path, object: &str) -> Result<Views, Box<dyn std::error::Err
     Ok((run.join("run").join(object).join("model.objf"), views))
 }
 
-/// `--model M --scene S [--masks alpha] [--every N] [--downscale F]`: a model and every N-th
-/// view of a scene it was not trained on (lego's test views), masks from the images' alpha.
+/// The views an extract or demo run's `report.json` held out of training.
+fn held_out_of(report: &Path) -> Result<Vec<String>, Box<dyn std::error::Error>> {
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(report)?)?;
+    let held: Vec<String> = report["objects"][0]["segmentation"]["held_out"]
+        .as_array()
+        .ok_or("report.json names no held-out views")?
+        .iter()
+        .filter_map(|v| v.as_str().map(str::to_string))
+        .collect();
+    Ok(held)
+}
+
+/// `--model M --scene S [--masks alpha|DIR] [--every N | --held-out REPORT] [--downscale F]`: a
+/// model and every N-th view of a scene it was not trained on (lego's test views), masks from
+/// the images' alpha; or, with an extract run's `report.json`, the views that run held out of
+/// training, masks its segmentation's (`RUN/segment/masks/OBJECT`).
 fn capture_views(args: &[String]) -> Result<Views, Box<dyn std::error::Error>> {
     let model = PathBuf::from(arg(args, "--model").ok_or("give --run or --model and --scene")?);
     let scene_path = PathBuf::from(arg(args, "--scene").ok_or("--scene is required")?);
@@ -290,10 +304,17 @@ fn capture_views(args: &[String]) -> Result<Views, Box<dyn std::error::Error>> {
         &arg(args, "--masks").unwrap_or_else(|| "alpha".into()),
         &scene_path,
     )?;
-    let views = load_views(&scene, &masks, factor)?
-        .into_iter()
-        .step_by(every.max(1))
-        .collect();
+    let views = load_views(&scene, &masks, factor)?;
+    let views = match arg(args, "--held-out") {
+        Some(report) => {
+            let held = held_out_of(Path::new(&report))?;
+            views
+                .into_iter()
+                .filter(|v| held.contains(&v.cam.name))
+                .collect()
+        }
+        None => views.into_iter().step_by(every.max(1)).collect(),
+    };
     Ok((model, views))
 }
 
