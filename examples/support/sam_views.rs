@@ -105,6 +105,27 @@ pub fn iou_cases(tmp: &Path) -> Result<Vec<IouCase>> {
     Ok(out)
 }
 
+/// The same cases with every pixel channel moved by -1, 0 or +1 grey level (seeded): a change no
+/// one could see, whose effect on fp32's masks says how stable each click's mask is, the floor
+/// against which an encoder's differences from fp32 are read.
+pub fn perturbed(cases: &[IouCase], seed: u64) -> Vec<IouCase> {
+    let mut rng = objnerf::util::Rng::new(seed);
+    cases
+        .iter()
+        .map(|c| {
+            let mut image = c.image.clone();
+            for v in image.iter_mut() {
+                *v = (*v as i32 + rng.below(3) as i32 - 1).clamp(0, 255) as u8;
+            }
+            IouCase {
+                name: c.name.clone(),
+                image,
+                clicks: c.clicks.clone(),
+            }
+        })
+        .collect()
+}
+
 /// Every click's mask (one click each), in case order.
 pub fn masks(seg: &Segmenter, cases: &[IouCase]) -> Result<Vec<Vec<bool>>> {
     let mut out = Vec::new();

@@ -128,11 +128,10 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
     }
 
     // The ONNX files not copied, and the int8 encoder (there is none to copy): written from the
-    // checkpoint (a few seconds). The int8 file is checked against the sum recorded when it was
-    // written, as the library is (tests/sam_convert.rs pins its bytes).
+    // checkpoint (a few seconds). The int8 file is checked against the converter's pinned sum, so
+    // an int8 file from an earlier converter is written again (tests/sam_convert.rs pins it).
     let int8 = dir.encoder_int8();
-    let int8_ok = int8.is_file()
-        && recorded_sha256(&int8).is_some_and(|r| sha256_file(&int8).is_ok_and(|h| h == r));
+    let int8_ok = int8.is_file() && sha256_file(&int8)? == CONVERTED_ENCODER_INT8_SHA256;
     let mut converted = [false; 3];
     if (onnx_ok.iter().any(|ok| !ok) || !int8_ok) && ckpt.is_file() {
         let m = convert::mobile_sam_onnx(&ckpt)?;
@@ -149,8 +148,8 @@ pub fn install(dir: &ModelsDir, opts: &InstallOptions) -> Result<Vec<InstallStep
             }
         }
         if converted[2] {
-            let h = sha256_file(&int8)?;
-            write_bytes_atomic(&sidecar(&int8), format!("{h}\n").as_bytes())?;
+            // The sidecar an earlier objnerf recorded the int8 file's sum in.
+            let _ = std::fs::remove_file(sidecar(&int8));
         }
     }
     for (i, (name, dest, _, _)) in onnx.iter().enumerate() {

@@ -36,6 +36,10 @@ pub const CONVERTED_ENCODER_SHA256: &str =
     "cb2c4df177e2e6d589583970d76c3083f84a82da61c5f895041f75ac4c5881d9";
 pub const CONVERTED_DECODER_SHA256: &str =
     "7b9e6077ba562bba393f54cd689a1576c2af6d1a54d6119d83e49ba9144a722c";
+/// The int8 encoder ([`crate::sam::convert::encoder::Variant::INT8`]): pinned as the fp32 files
+/// are, so that `models install` replaces an int8 file an earlier objnerf wrote.
+pub const CONVERTED_ENCODER_INT8_SHA256: &str =
+    "7a7c3449dc40f2a52f78e7e6430eb6ae755a7265ef36974c382e5a0bffed9a0f";
 pub use crate::sam::convert::CHECKPOINT_SHA256;
 
 pub use crate::sam::INSTALL_HINT;
@@ -151,7 +155,7 @@ impl ModelsDir {
             entry(
                 "MobileSAM encoder (int8)",
                 self.encoder_int8(),
-                recorded_sha256(&self.encoder_int8()),
+                Some(CONVERTED_ENCODER_INT8_SHA256.into()),
             ),
             entry(
                 "MobileSAM checkpoint",
@@ -219,7 +223,7 @@ fn entry(name: &str, path: PathBuf, expected: Option<String>) -> ModelEntry {
     }
 }
 
-/// The sha256 recorded in `path`'s sidecar when it was installed (the library, the int8 encoder).
+/// The sha256 recorded in `path`'s sidecar when it was installed (the library).
 pub(crate) fn recorded_sha256(path: &Path) -> Option<String> {
     std::fs::read_to_string(sidecar(path))
         .ok()

@@ -45,16 +45,20 @@ pub struct Variant {
     /// `MultiHeadAttention`, with q, k and v from three Linear layers: no Split and no per-head
     /// Transposes between them.
     pub fused_attention: bool,
+    /// The int8 Linear layers' weights stored as uint8 with zero point 128 ([`linear_int8`]).
+    pub unsigned_weights: bool,
 }
 
 impl Variant {
     pub const FP32: Variant = Variant {
         int8_linears: false,
         fused_attention: false,
+        unsigned_weights: false,
     };
     pub const INT8: Variant = Variant {
         int8_linears: true,
         fused_attention: true,
+        unsigned_weights: true,
     };
 }
 
@@ -163,7 +167,7 @@ impl Weights<'_> {
     }
     fn linear_of(&self, g: &mut Graph, x: &str, name: &str, w: &Tensor, b: &Tensor) -> String {
         if self.variant.int8_linears {
-            linear_int8(g, x, name, w, b)
+            linear_int8(g, x, name, w, b, self.variant.unsigned_weights)
         } else {
             g.linear(x, name, w, b)
         }

@@ -107,6 +107,17 @@ impl Graph {
         name.to_string()
     }
 
+    /// A named uint8 initializer (a quantised weight or its zero points).
+    pub fn weight_u8(&mut self, name: &str, dims: &[usize], vals: &[u8]) -> String {
+        self.inits.push(TensorProto {
+            dims: dims.iter().map(|&d| d as i64).collect(),
+            data_type: UINT8,
+            name: name.into(),
+            raw_data: vals.to_vec(),
+        });
+        name.to_string()
+    }
+
     /// A float constant of the given shape (shared with equal ones).
     pub fn f32s(&mut self, dims: &[i64], vals: &[f32]) -> String {
         let raw = vals.iter().flat_map(|v| v.to_le_bytes()).collect();

@@ -1,6 +1,13 @@
 //! int8 layers for the quantised graphs: a Linear layer whose weight is stored as int8 with one
 //! scale per output channel, run by ONNX Runtime's `DynamicQuantizeMatMul` (the activations are
 //! quantised to uint8 per call, from their own range, so no calibration data is needed).
+//!
+//! The weights are stored as uint8 with zero point 128 (the int8 value + 128), not as int8: with
+//! uint8 activations and int8 weights, ONNX Runtime's x86 kernel on CPUs without VNNI (AVX2)
+//! multiplies with `vpmaddubsw`, whose int16 sums of two products saturate, which ONNX Runtime's
+//! quantisation guide names as the cause of accuracy drops and answers with the U8U8 format. On
+//! this project's AVX2 machine the int8 weights gave the embeddings 4-6 % relative RMS error
+//! against fp32 and uint8 weights 3-4 %, at the same speed (`examples/results/bench_sam.md`).
 
 use super::graph::Graph;
 use super::torch::Tensor;
@@ -37,18 +44,44 @@ pub fn quantize_per_column(w: &Tensor) -> (Vec<i8>, Vec<f32>) {
     (q, scales)
 }
 
-/// `nn.Linear` on the last axis with an int8 weight (per output channel) and a uint8 activation
+/// The zero point of a weight stored as uint8: the int8 value + 128.
+const U8_ZERO: u8 = 128;
+
+/// `nn.Linear` on the last axis with an 8-bit weight (per output channel) and a uint8 activation
 /// quantised on the fly: ONNX Runtime's `DynamicQuantizeMatMul`, the bias added in the same node.
-pub fn linear_int8(g: &mut Graph, x: &str, name: &str, w: &Tensor, b: &Tensor) -> String {
+/// `unsigned`: the weight as uint8 with zero point 128 (see the module's note), else as int8.
+pub fn linear_int8(
+    g: &mut Graph,
+    x: &str,
+    name: &str,
+    w: &Tensor,
+    b: &Tensor,
+    unsigned: bool,
+) -> String {
     let (q, scales) = quantize_per_column(w);
     let (out, inp) = (w.shape[0], w.shape[1]);
-    let wq = g.weight_i8(&format!("{name}.weight_q"), &[inp, out], &q);
+    let (wq, zero) = if unsigned {
+        let u: Vec<u8> = q
+            .iter()
+            .map(|&v| (v as i16 + U8_ZERO as i16) as u8)
+            .collect();
+        let wq = g.weight_u8(&format!("{name}.weight_q"), &[inp, out], &u);
+        let zero = g.weight_u8(&format!("{name}.weight_zero"), &[out], &vec![U8_ZERO; out]);
+        (wq, zero)
+    } else {
+        let wq = g.weight_i8(&format!("{name}.weight_q"), &[inp, out], &q);
+        (wq, String::new())
+    };
     let ws = g.weight(
         &format!("{name}.weight_scale"),
         &Tensor::new(vec![out], scales),
     );
     let bias = g.weight(&format!("{name}.bias"), b);
-    g.op_ms("DynamicQuantizeMatMul", &[x, &wq, &ws, "", &bias], vec![])
+    g.op_ms(
+        "DynamicQuantizeMatMul",
+        &[x, &wq, &ws, &zero, &bias],
+        vec![],
+    )
 }
 
 #[cfg(test)]
