@@ -28,7 +28,7 @@ use objnerf::util::mem::peak_rss_mib;
 use objnerf::{Error, Result};
 use prost::Message;
 use sam_bench::{bench_images, BenchArgs, RunInfo};
-use sam_views::{compare, iou_cases, masks, perturbed, IouSummary};
+use sam_views::{compare, iou_cases, masks, mean_iou_vs_truth, perturbed, IouSummary};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -56,6 +56,9 @@ pub struct EncoderRow {
     pub paired_ratio_to_python: f64,
     /// Its masks against our fp32 encoder's, one click per case.
     pub iou_vs_fp32: IouSummary,
+    /// Its masks against the truth, over the demo's clicks (whose true masks are known): fp32's
+    /// own masks are not the truth, and where the two disagree either may be the right one.
+    pub demo_iou_vs_truth: f64,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -352,6 +355,7 @@ pub fn bench_sam(dir: &ModelsDir, opts: &BenchOptions) -> Result<BenchReport> {
             encoder: Stats::of(&enc_times[k]),
             paired_ratio_to_python: Stats::of(&paired).median,
             iou_vs_fp32: compare(&cases, &reference, &got),
+            demo_iou_vs_truth: mean_iou_vs_truth(&cases, &got),
         });
     }
     let fp32_one_grey_level = compare(&cases, &reference, &masks(seg, &perturbed(&cases, 58))?);
@@ -461,13 +465,14 @@ fn main() -> Result<()> {
     );
     for e in &r.encoders {
         println!(
-            "{:<22} median {:.3} s, paired ratio to Python fp32 {:.3}; mask IoU vs fp32 mean {:.4}, worst {:.4} ({})",
+            "{:<22} median {:.3} s, paired ratio to Python fp32 {:.3}; mask IoU vs fp32 mean {:.4}, worst {:.4} ({}); demo vs truth {:.4}",
             e.name,
             e.encoder.median,
             e.paired_ratio_to_python,
             e.iou_vs_fp32.mean,
             e.iou_vs_fp32.worst,
-            e.iou_vs_fp32.worst_case
+            e.iou_vs_fp32.worst_case,
+            e.demo_iou_vs_truth
         );
     }
     let floor = &r.fp32_one_grey_level;

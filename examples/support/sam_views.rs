@@ -18,6 +18,8 @@ pub struct IouCase {
     pub name: String,
     pub image: RgbImage,
     pub clicks: Vec<(f32, f32)>,
+    /// Each click's true mask where the case has one (the demo's objects), row-major.
+    pub truths: Vec<Option<Vec<bool>>>,
 }
 
 fn shared_data(name: &str) -> Option<PathBuf> {
@@ -45,20 +47,24 @@ pub fn iou_cases(tmp: &Path) -> Result<Vec<IouCase>> {
     for v in (0..36).step_by(3) {
         let name = view_name(v);
         let image = read_rgb(&demo.join("images").join(&name))?;
-        let mut clicks = Vec::new();
+        let (mut clicks, mut truths) = (Vec::new(), Vec::new());
         for o in &objects {
             let p = demo.join("truth/masks").join(&o.name).join(&name);
             let t = image::open(&p)
                 .map_err(|e| Error::format(&p, e.to_string()))?
                 .to_luma8();
             if t.pixels().filter(|p| p[0] > 127).count() > 200 {
-                clicks.extend(interior(&t));
+                if let Some(c) = interior(&t) {
+                    clicks.push(c);
+                    truths.push(Some(t.pixels().map(|p| p[0] > 127).collect()));
+                }
             }
         }
         out.push(IouCase {
             name: format!("demo {name}"),
             image,
             clicks,
+            truths,
         });
     }
     if let Some(lego) = shared_data("lego") {
@@ -74,10 +80,12 @@ pub fn iou_cases(tmp: &Path) -> Result<Vec<IouCase>> {
                     0
                 }])
             });
+            let clicks: Vec<(f32, f32)> = interior(&alpha).into_iter().collect();
             out.push(IouCase {
                 name: format!("lego r_{r}"),
                 image: read_rgb(&p)?,
-                clicks: interior(&alpha).into_iter().collect(),
+                truths: vec![None; clicks.len()],
+                clicks,
             });
         }
     }
@@ -99,6 +107,7 @@ pub fn iou_cases(tmp: &Path) -> Result<Vec<IouCase>> {
                 ),
                 image,
                 clicks: vec![c],
+                truths: vec![None],
             });
         }
     }
@@ -121,6 +130,7 @@ pub fn perturbed(cases: &[IouCase], seed: u64) -> Vec<IouCase> {
                 name: c.name.clone(),
                 image,
                 clicks: c.clicks.clone(),
+                truths: c.truths.clone(),
             }
         })
         .collect()
@@ -136,6 +146,19 @@ pub fn masks(seg: &Segmenter, cases: &[IouCase]) -> Result<Vec<Vec<bool>>> {
         }
     }
     Ok(out)
+}
+
+/// Mean IoU of the masks against the true ones, over the clicks that have one (the demo's).
+pub fn mean_iou_vs_truth(cases: &[IouCase], got: &[Vec<bool>]) -> f64 {
+    let truths = cases.iter().flat_map(|c| c.truths.iter());
+    let ious: Vec<f64> = truths
+        .zip(got)
+        .filter_map(|(t, m)| {
+            t.as_ref()
+                .map(|t| iou_bits(t.iter().copied(), m.iter().copied()))
+        })
+        .collect();
+    ious.iter().sum::<f64>() / ious.len().max(1) as f64
 }
 
 /// Mask IoU against the reference masks: mean, worst, and the worst one's case name.

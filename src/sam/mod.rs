@@ -34,12 +34,12 @@ pub const INSTALL_HINT: &str = "objnerf models install";
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
-    /// The reference graph: the PyTorch exporter's operators, in float32. The default until the
-    /// converter's int8 file scores as its Python stand-in does (examples/results/bench_sam.md).
+    /// The reference graph: the PyTorch exporter's operators, in float32. The default: int8 saves
+    /// too little time for masks that differ on ambiguous clicks (examples/results/bench_sam.md).
     #[default]
     Fp32,
-    /// Linear layers in int8 and fused attention ([`convert::encoder::Variant::INT8`]): about
-    /// 0.75 x fp32's encoder time here (examples/results/bench_sam.md).
+    /// Linear layers in int8 and fused attention ([`convert::encoder::Variant::INT8`]): 0.75-0.85
+    /// x fp32's encoder time on the 2-core machines measured (examples/results/bench_sam.md).
     Int8,
 }
 
