@@ -1,5 +1,5 @@
-//! int8 layers for the quantised graphs: a Linear layer whose weight is stored as int8 with one
-//! scale per output channel, run by ONNX Runtime's `DynamicQuantizeMatMul` (the activations are
+//! int8 layers for the quantised graphs: a Linear layer whose weight is quantised to 8 bits with
+//! one scale per output channel, run by ONNX Runtime's `DynamicQuantizeMatMul` (the activations are
 //! quantised to uint8 per call, from their own range, so no calibration data is needed).
 //!
 //! The weights are stored as uint8 with zero point 128 (the int8 value + 128), not as int8: with
@@ -7,7 +7,8 @@
 //! multiplies with `vpmaddubsw`, whose int16 sums of two products saturate, which ONNX Runtime's
 //! quantisation guide names as the cause of accuracy drops and answers with the U8U8 format. On
 //! this project's AVX2 machine the int8 weights gave the embeddings 4-6 % relative RMS error
-//! against fp32 and uint8 weights 3-4 %, at the same speed (`examples/results/bench_sam.md`).
+//! against fp32 and uint8 weights 3-4 %, for 3-11 % more encoder time
+//! (`examples/results/bench_sam.md`).
 
 use super::graph::Graph;
 use super::torch::Tensor;
