@@ -232,13 +232,17 @@ impl DemoCmd {
         let t = &job.truth;
         println!(
             "against the truth: mask mIoU {:.3} (ok views); held-out PSNR {:.2} dB, SSIM {:.3} ({} views); \
-             Chamfer {:.4} = {:.2}% of the true box diagonal",
+             Chamfer {:.4} = {:.2}% of the true box diagonal ({:.2}% over the surfaces the \
+             training views see: {:.0}% of ours, {:.0}% of the truth)",
             t.miou_ok_views,
             t.heldout_psnr,
             t.heldout_ssim,
             t.heldout_views,
             t.chamfer,
-            100.0 * t.chamfer_fraction_of_diagonal
+            100.0 * t.chamfer_fraction_of_diagonal,
+            100.0 * t.chamfer_seen_fraction_of_diagonal,
+            100.0 * t.ours_seen,
+            100.0 * t.truth_seen
         );
         println!(
             "open {} in Blender (File > Import > glTF 2.0) or any glTF viewer",

@@ -1,6 +1,10 @@
 //! Chamfer distance between two triangle meshes: points sampled on each surface (area-weighted,
-//! seeded), nearest neighbours found through a uniform grid, distances averaged both ways.
+//! seeded), nearest neighbours found through a uniform grid, distances averaged both ways; and
+//! the same over only the parts of each surface some camera sees ([`chamfer_distance_seen`]),
+//! for a capture whose cameras cannot see all of an object (the inside of a cup from a ring).
 
+use crate::field::RayCamera;
+use crate::mesh::raster::depth_map;
 use crate::mesh::Mesh;
 use crate::util::Rng;
 use glam::DVec3;
@@ -124,6 +128,101 @@ pub fn chamfer_distance(a: &Mesh, b: &Mesh, n: usize, seed: u64) -> f64 {
     0.5 * (ab + ba)
 }
 
+/// Visibility is drawn at this many times each camera's resolution, so its depth test is finer
+/// than the camera's pixels.
+const VISIBILITY_UPSCALE: u32 = 4;
+
+/// A point counts as seen when it lies no more than this many (upscaled) pixels' width behind
+/// the mesh's depth at its pixel: half a pixel of the camera's own image, so that a point on the
+/// visible surface passes however the z-buffer's pixel centres fall on it, and one a voxel
+/// behind it does not.
+const SEEN_TOLERANCE_PX: f32 = 2.0;
+
+/// Which of `points` (on `mesh`'s surface) some camera of `cams` sees: in front of it, inside
+/// its image and not behind the mesh's own surface there (occlusion by `mesh` only).
+pub fn seen_by(points: &[DVec3], mesh: &Mesh, cams: &[RayCamera]) -> Vec<bool> {
+    let mut seen = vec![false; points.len()];
+    for cam in cams {
+        let (w, h) = (
+            cam.width * VISIBILITY_UPSCALE,
+            cam.height * VISIBILITY_UPSCALE,
+        );
+        let fine = RayCamera::new(cam.name.clone(), cam.camera.resized(w, h), cam.pose);
+        let depth = depth_map(mesh, &fine);
+        let centre = fine.center().as_dvec3();
+        let forward = fine.pose.camera_to_world_dir(DVec3::Z);
+        let focal = fine.focal() as f64;
+        seen.par_iter_mut().zip(points).for_each(|(s, p)| {
+            if *s {
+                return;
+            }
+            let z = (*p - centre).dot(forward);
+            let Some((x, y)) = fine.project(p.as_vec3()) else {
+                return;
+            };
+            if z <= 0.0 || x < 0.0 || y < 0.0 || x >= w as f32 || y >= h as f32 {
+                return;
+            }
+            let d = depth[x as usize + w as usize * y as usize] as f64;
+            *s = z <= d + SEEN_TOLERANCE_PX as f64 * z / focal;
+        });
+    }
+    seen
+}
+
+/// Chamfer distance over the seen parts of two surfaces ([`chamfer_distance_seen`]).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct SeenChamfer {
+    /// The mean of the two directions.
+    pub distance: f64,
+    /// Mean distance from `a`'s seen points to `b` (all of its samples).
+    pub a_to_b: f64,
+    /// Mean distance from `b`'s seen points to `a` (all of its samples).
+    pub b_to_a: f64,
+    /// Share of `a`'s samples some camera sees.
+    pub a_seen: f64,
+    /// Share of `b`'s samples some camera sees.
+    pub b_seen: f64,
+}
+
+/// Chamfer distance counting only the points of each surface that some camera of `cams` sees
+/// in that surface's own mesh ([`seen_by`]); each is measured to the nearest of all the other
+/// surface's samples, seen or not. What a capture cannot show (the inside of a cup below what
+/// any camera sees past the rim, an underside on the floor) is left out of both directions.
+pub fn chamfer_distance_seen(
+    a: &Mesh,
+    b: &Mesh,
+    cams: &[RayCamera],
+    n: usize,
+    seed: u64,
+) -> SeenChamfer {
+    let pa = sample_surface(a, n, seed);
+    let pb = sample_surface(b, n, seed ^ 0x5EED);
+    let (sa, sb) = (seen_by(&pa, a, cams), seen_by(&pb, b, cams));
+    let (ga, gb) = (PointGrid::new(&pa), PointGrid::new(&pb));
+    let mean_to = |pts: &[DVec3], seen: &[bool], grid: &PointGrid| {
+        let kept: Vec<DVec3> = pts
+            .iter()
+            .zip(seen)
+            .filter(|s| *s.1)
+            .map(|s| *s.0)
+            .collect();
+        if kept.is_empty() || grid.cells.is_empty() {
+            return f64::INFINITY;
+        }
+        kept.par_iter().map(|p| grid.nearest(*p)).sum::<f64>() / kept.len() as f64
+    };
+    let share = |s: &[bool]| s.iter().filter(|x| **x).count() as f64 / s.len().max(1) as f64;
+    let (ab, ba) = (mean_to(&pa, &sa, &gb), mean_to(&pb, &sb, &ga));
+    SeenChamfer {
+        distance: 0.5 * (ab + ba),
+        a_to_b: ab,
+        b_to_a: ba,
+        a_seen: share(&sa),
+        b_seen: share(&sb),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,5 +253,61 @@ mod tests {
             .map(|p| (*p - q).length())
             .fold(f64::INFINITY, f64::min);
         assert_eq!(g.nearest(q), brute);
+    }
+
+    /// A box open at the top seen from above at an angle: its floor's far part and the inner
+    /// wall below the sightlines past the rim are unseen, its outer walls facing the camera seen.
+    #[test]
+    fn an_open_box_seen_from_one_side_hides_its_inside() {
+        let mesh = open_box();
+        let cam = crate::scene::Camera::pinhole(160, 120, 120.0, 120.0, 80.0, 60.0);
+        let pose = crate::scene::Pose::look_at(
+            DVec3::new(4.0, 0.0, 3.0),
+            DVec3::new(0.0, 0.0, 0.5),
+            DVec3::Z,
+        );
+        let cams = [RayCamera::new("v".into(), cam, pose)];
+        let pts = [
+            DVec3::new(1.0, 0.0, 0.5),   // outer wall facing the camera
+            DVec3::new(0.5, 0.0, 0.0),   // the floor just inside the near wall: hidden by it
+            DVec3::new(0.9, 0.0, 0.05),  // low on the near wall's inner face: hidden
+            DVec3::new(-0.8, 0.0, 0.0),  // the floor's far part: seen past the rim
+            DVec3::new(-0.99, 0.0, 0.1), // low on the far wall, just off it: seen
+        ];
+        assert_eq!(
+            seen_by(&pts, &mesh, &cams),
+            vec![true, false, false, true, true]
+        );
+        let c = chamfer_distance_seen(&mesh, &mesh, &cams, 4000, 1);
+        assert!(c.a_seen > 0.2 && c.a_seen < 0.8, "{c:?}");
+        assert!(c.distance < 0.05, "{c:?}");
+    }
+
+    /// Four walls of a 2 x 2 x 1 box (x, y in -1..1, z in 0..1) and its floor, no lid.
+    fn open_box() -> Mesh {
+        let mut positions = vec![];
+        let mut triangles = vec![];
+        let mut quad = |q: [[f32; 3]; 4]| {
+            let base = positions.len() as u32;
+            positions.extend(q);
+            triangles.push([base, base + 1, base + 2]);
+            triangles.push([base, base + 2, base + 3]);
+        };
+        let c = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+        for k in 0..4 {
+            let (a, b) = (c[k], c[(k + 1) % 4]);
+            quad([
+                [a[0], a[1], 0.0],
+                [b[0], b[1], 0.0],
+                [b[0], b[1], 1.0],
+                [a[0], a[1], 1.0],
+            ]);
+        }
+        quad(c.map(|p| [p[0], p[1], 0.0]));
+        Mesh {
+            positions,
+            triangles,
+            ..Default::default()
+        }
     }
 }

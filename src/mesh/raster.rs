@@ -10,6 +10,27 @@ use glam::{Vec2, Vec3};
 /// The mesh (in the camera's world frame) drawn into `cam`'s image: per pixel the colour in 0..1
 /// (the photos' sRGB values), None where no triangle covers the pixel centre.
 pub fn render_mesh(mesh: &Mesh, cam: &RayCamera) -> Vec<Option<[f32; 3]>> {
+    zbuffer(mesh, cam)
+        .1
+        .into_iter()
+        .map(|hit| hit.map(|(t, w)| shade(mesh, &mesh.triangles[t as usize], w)))
+        .collect()
+}
+
+/// The mesh's depth (along the camera's axis, world units) at each pixel centre of `cam`'s image,
+/// infinity where no triangle covers it.
+pub fn depth_map(mesh: &Mesh, cam: &RayCamera) -> Vec<f32> {
+    zbuffer(mesh, cam)
+        .0
+        .into_iter()
+        .map(|iz| if iz > 0.0 { 1.0 / iz } else { f32::INFINITY })
+        .collect()
+}
+
+/// One z-buffer pass: per pixel the nearest triangle's 1/depth (0: none) and that triangle with
+/// its perspective-correct barycentric weights.
+#[allow(clippy::type_complexity)]
+fn zbuffer(mesh: &Mesh, cam: &RayCamera) -> (Vec<f32>, Vec<Option<(u32, [f32; 3])>>) {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut inv_z = vec![0f32; w * h];
     let mut out = vec![None; w * h];
@@ -27,7 +48,7 @@ pub fn render_mesh(mesh: &Mesh, cam: &RayCamera) -> Vec<Option<[f32; 3]>> {
                 .map(|(x, y)| (Vec2::new(x, y), 1.0 / z))
         })
         .collect();
-    for t in &mesh.triangles {
+    for (ti, t) in mesh.triangles.iter().enumerate() {
         let Some([a, b, c]) = t
             .iter()
             .map(|&i| proj[i as usize])
@@ -63,11 +84,11 @@ pub fn render_mesh(mesh: &Mesh, cam: &RayCamera) -> Vec<Option<[f32; 3]>> {
                 inv_z[i] = iz;
                 // Perspective-correct weights.
                 let pw = [l0 * a.1 / iz, l1 * b.1 / iz, l2 * c.1 / iz];
-                out[i] = Some(shade(mesh, t, pw));
+                out[i] = Some((ti as u32, pw));
             }
         }
     }
-    out
+    (inv_z, out)
 }
 
 /// The colour at barycentric `w` of triangle `t`: texture, else vertex colours, else grey.
@@ -170,5 +191,8 @@ mod tests {
         assert!((covered as i64 - 32 * 32).abs() < 70, "{covered}");
         assert_eq!(img[32 + 64 * 32], Some([1.0, 0.0, 0.0]));
         assert_eq!(img[2 + 64 * 2], None);
+        let depth = depth_map(&mesh, &rc);
+        assert!((depth[32 + 64 * 32] - 4.0).abs() < 1e-5);
+        assert_eq!(depth[2 + 64 * 2], f32::INFINITY);
     }
 }

@@ -6,7 +6,7 @@ use super::extract::{extract, object_masks_dir, write_report, ExtractOptions, Ex
 use crate::demo::{read_truth, write_demo_scene, DemoOptions, DemoSummary, ObjectTruth};
 use crate::error::{Error, Result};
 use crate::field::{eval::evaluate, load_views, MaskSource, RenderOptions};
-use crate::mesh::chamfer::chamfer_distance;
+use crate::mesh::chamfer::{chamfer_distance, chamfer_distance_seen};
 use crate::sam::Segmenter;
 use crate::scene::io::{mask_file, read_mask};
 use crate::scene::Scene;
@@ -30,6 +30,12 @@ pub struct TruthScores {
     /// box diagonal.
     pub chamfer: f64,
     pub chamfer_fraction_of_diagonal: f64,
+    /// The same over the parts of each surface some training view sees (in its own mesh), as a
+    /// fraction of the diagonal: the ring of cameras cannot see the inside of a cup below its rim.
+    pub chamfer_seen_fraction_of_diagonal: f64,
+    /// Shares of our surface and of the true surface the training views see.
+    pub ours_seen: f64,
+    pub truth_seen: f64,
     pub true_box_diagonal: f64,
 }
 
@@ -142,6 +148,14 @@ fn score(
     let true_mesh = crate::mesh::io::read_ply(&scene_dir.join(format!("truth/meshes/{name}.ply")))?;
     let ours = crate::mesh::io::read_ply(&obj.mesh_glb.with_extension("ply"))?;
     let chamfer = chamfer_distance(&ours, &true_mesh, 50_000, 7);
+    let training: Vec<_> = crate::field::RayCamera::for_scene(scene, 1)
+        .into_iter()
+        .filter(|c| {
+            let s = &obj.segmentation;
+            !s.held_out.contains(&c.name) && !s.excluded.contains(&c.name)
+        })
+        .collect();
+    let seen = chamfer_distance_seen(&ours, &true_mesh, &training, 50_000, 7);
     let (lo, hi) = true_mesh.bounds();
     let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) as f64;
     Ok(TruthScores {
@@ -152,6 +166,9 @@ fn score(
         heldout_views: eval.num_views,
         chamfer,
         chamfer_fraction_of_diagonal: chamfer / diag,
+        chamfer_seen_fraction_of_diagonal: seen.distance / diag,
+        ours_seen: seen.a_seen,
+        truth_seen: seen.b_seen,
         true_box_diagonal: diag,
     })
 }
