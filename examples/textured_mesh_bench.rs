@@ -17,7 +17,8 @@
 //! `--held-out RUN/report.json --masks RUN/segment/masks/OBJECT`, the views an extract run held
 //! out, inside their segmented masks).
 //! Writes `NAME.json` and `NAME.svg` (`--name`, default textured_mesh) into `--out` (default
-//! examples/results).
+//! examples/results); `--renders DIR` also writes each mesh drawn at the first three views under
+//! the photos (inside the mask), to look at.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -67,6 +68,35 @@ struct Setup {
     frame: GltfFrame,
     views: Vec<objnerf::field::View>,
     diag: f64,
+    /// `--renders DIR`: where each variant's first views are written beside the photos.
+    renders: Option<PathBuf>,
+}
+
+/// The first three views: the photos inside their masks over white (top), the mesh as the
+/// rasteriser scores it (bottom), side by side, as `dir/name.png`.
+fn save_renders(mesh: &Mesh, views: &[objnerf::field::View], dir: &Path, name: &str) {
+    let shown = &views[..views.len().min(3)];
+    let Some(first) = shown.first() else { return };
+    let (w, h) = (first.cam.width, first.cam.height);
+    let mut sheet =
+        image::RgbImage::from_pixel(w * shown.len() as u32, 2 * h, image::Rgb([255; 3]));
+    for (k, v) in shown.iter().enumerate() {
+        let drawn = objnerf::mesh::raster::render_mesh(mesh, &v.cam);
+        for (i, (px, target)) in drawn.iter().zip(&v.rgba).enumerate() {
+            let (x, y) = (k as u32 * w + i as u32 % w, i as u32 / w);
+            if target[3] == 255 {
+                sheet.put_pixel(x, y, image::Rgb([target[0], target[1], target[2]]));
+                let c = px
+                    .unwrap_or([1.0; 3])
+                    .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+                sheet.put_pixel(x, y + h, image::Rgb(c));
+            }
+        }
+    }
+    std::fs::create_dir_all(dir).expect("renders folder");
+    sheet
+        .save(dir.join(format!("{name}.png")))
+        .expect("write renders");
 }
 
 fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
@@ -87,6 +117,17 @@ fn measure(s: &Setup, opts: &ExportOptions, dir: &Path) -> Variant {
     let glb = dir.join("m.glb");
     write_mesh(&mesh, Some(&s.frame), &glb).expect("write glb");
     let cd = chamfer_distance(&mesh, &s.full, 50_000, 7);
+    if let Some(r) = &s.renders {
+        let name = format!(
+            "{}_{}",
+            opts.max_triangles.map_or("full".into(), |b| b.to_string()),
+            opts.texture.map_or("vertex_colours".into(), |t| match t {
+                TextureSize::Auto => "texture_auto".into(),
+                TextureSize::Side(n) => format!("texture_{n}"),
+            })
+        );
+        save_renders(&mesh, &s.views, r, &name);
+    }
     let v = Variant {
         budget: opts.max_triangles,
         texture: report.atlas.as_ref().map(|a| a.size),
@@ -173,6 +214,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         frame,
         views,
         diag,
+        renders: arg(&args, "--renders").map(PathBuf::from),
     };
     let full_psnr = masked_psnr(&s.full, &s.views);
     eprintln!(

@@ -6,16 +6,16 @@
 //! colour in that direction composited along that ray from just before the point to two voxels
 //! past it, so a point of a decimated mesh a little off the field's surface still shows what the
 //! cameras saw there. The mean is weighted by the cosine of each camera's angle to the normal (a
-//! head-on view sees the point sharpest). Occlusion is not tested: for a direction no camera
-//! saw, the field's low-order SH extrapolates smoothly. Without the training cameras (models
-//! written before they were recorded), or where no camera's ray meets the surface, an SH field
-//! gives its DC term (the mean over all directions) composited along the inward normal; a field
-//! with a colour network is always asked for the view along the normal (its per-ray network is
-//! too costly for every camera at every texel).
+//! head-on view sees the point sharpest). SH fields and fields with a colour network alike: the
+//! network's per-direction part is computed once a ray, its per-sample part only at the few
+//! samples with weight. Occlusion is not tested. Without the training cameras (models written
+//! before they were recorded), or where no camera's ray meets the surface, an SH field gives its
+//! DC term (the mean over all directions) composited along the inward normal, a network field
+//! its view along the normal.
 
 use super::fill::EMPTY;
 use crate::field::colour_net::MAX_ACTIVATIONS;
-use crate::field::model::{Field, MAX_CHANNELS};
+use crate::field::model::{Field, RayShading, MAX_CHANNELS};
 use crate::field::sh::{sh_basis, SH_TERMS};
 use glam::Vec3;
 
@@ -55,8 +55,8 @@ pub(crate) fn raw_at(field: &Field, p: Vec3) -> f32 {
     field.grid.interp_density(&k)
 }
 
-/// Colour at a world point seen along `dir` whose SH basis is `basis`, 0..1.
-fn colour_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32; 3] {
+/// Colour at a world point seen along `dir` on a ray shaded by `shading` ([`Field::shading`]), 0..1.
+fn colour_at(field: &Field, p: Vec3, dir: Vec3, shading: &RayShading) -> [f32; 3] {
     let g = field.to_grid(p);
     let dims = field.grid.dims;
     let g = [0, 1, 2].map(|a| g[a].clamp(0.0, (dims[a] - 1) as f32));
@@ -67,7 +67,18 @@ fn colour_at(field: &Field, p: Vec3, dir: Vec3, basis: &[f32; SH_TERMS]) -> [f32
     field.grid.interp_colour(&k, &mut feat[..ch - 1]);
     let mut h = [0f32; MAX_ACTIVATIONS];
     let refl = field.reflection_basis(&k, fr, dir);
-    field.shade(&feat, &refl, &field.shading(*basis), &mut h)
+    field.shade(&feat, &refl, shading, &mut h)
+}
+
+/// The shading of a ray along `dir` (`dc_only`: an SH field's mean over all directions).
+fn ray_shading(field: &Field, dir: Vec3, dc_only: bool) -> RayShading {
+    let mut basis = [0f32; SH_TERMS];
+    if dc_only {
+        basis[0] = 0.282_094_8;
+    } else {
+        sh_basis(field.config.sh_degree, dir, &mut basis);
+    }
+    field.shading(basis)
 }
 
 /// Samples with their compositing weights along `dir` through `p`, from half a voxel (and
@@ -102,8 +113,6 @@ fn samples_along(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Vec<(Vec3, f3
 /// widens the march both ways for a point off the iso-surface (a decimated mesh's); `centres`:
 /// the training cameras.
 pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Vec3]) -> [f32; 3] {
-    // Along the inward normal.
-    let samples = samples_along(field, p, -n, slack);
     let mut facing: Vec<(Vec3, f32)> = centres
         .iter()
         .filter_map(|c| {
@@ -115,17 +124,8 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Ve
     // The most head-on cameras only: they see the point sharpest, and the cost stays bounded.
     facing.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
     facing.truncate(MAX_CAMERAS);
-    if field.net.is_some() || facing.is_empty() {
-        let mut basis = [0f32; SH_TERMS];
-        match field.net {
-            Some(_) => sh_basis(field.config.sh_degree, -n, &mut basis),
-            None => basis[0] = 0.282_094_8,
-        }
-        return composite(&samples, |q| colour_at(field, q, -n, &basis))
-            .unwrap_or_else(|| colour_at(field, p, -n, &basis));
-    }
-    // SH colour: what each camera's ray through the point shows (so a mesh a little off the
-    // field's surface still shows what the cameras saw there), weighted by the cosine.
+    // What each camera's ray through the point shows (so a mesh a little off the field's
+    // surface still shows what the cameras saw there), weighted by the cosine.
     let mut acc = [0f32; 3];
     let mut csum = 0f32;
     for (dir, cos) in &facing {
@@ -135,25 +135,26 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Ve
         (0..3).for_each(|k| acc[k] += cos * c[k]);
         csum += cos;
     }
-    if csum <= 0.0 {
-        let mut basis = [0f32; SH_TERMS];
-        basis[0] = 0.282_094_8;
-        return composite(&samples, |q| colour_at(field, q, -n, &basis))
-            .unwrap_or_else(|| colour_at(field, p, -n, &basis));
+    if csum > 0.0 {
+        return acc.map(|a| (a / csum).clamp(0.0, 1.0));
     }
-    acc.map(|a| (a / csum).clamp(0.0, 1.0))
+    // No camera: along the inward normal, an SH field's mean over directions (a network's view
+    // head-on).
+    let samples = samples_along(field, p, -n, slack);
+    let shading = ray_shading(field, -n, field.net.is_none());
+    composite(&samples, |q| colour_at(field, q, -n, &shading))
+        .unwrap_or_else(|| colour_at(field, p, -n, &shading))
 }
 
-/// The SH colour composited along the ray of direction `dir` through `p` ([`samples_along`]);
+/// The colour composited along the ray of direction `dir` through `p` ([`samples_along`]);
 /// None where that ray meets too little.
 fn along_ray(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Option<[f32; 3]> {
     let samples = samples_along(field, p, dir, slack);
     if samples.iter().map(|s| s.1).sum::<f32>() <= 0.2 {
         return None;
     }
-    let mut basis = [0f32; SH_TERMS];
-    sh_basis(field.config.sh_degree, dir, &mut basis);
-    composite(&samples, |q| colour_at(field, q, dir, &basis))
+    let shading = ray_shading(field, dir, false);
+    composite(&samples, |q| colour_at(field, q, dir, &shading))
 }
 
 /// The weighted mean of `colour` over `samples` (None: no weight).
