@@ -185,10 +185,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let frame = GltfFrame::for_model(&model, None)?;
     let up = glam::DVec3::from_array(frame.up);
     let t = Instant::now();
-    let mesh_opts = FieldMeshOptions {
+    let mut mesh_opts = FieldMeshOptions {
         seen_from: view_centres(&model.notes),
         ..Default::default()
     };
+    if let Some(m) = arg(&args, "--min-component") {
+        mesh_opts.min_component = m.parse()?;
+    }
+    if let Some(m) = arg(&args, "--iso") {
+        mesh_opts.iso_alpha = m.parse()?;
+    }
     if mesh_opts.seen_from.is_empty() {
         return Err(
             "the model records no training cameras (trained before they were): train it again"
@@ -222,6 +228,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         s.full.triangles.len(),
         s.views.len()
     );
+    if args.iter().any(|a| a == "--full-only") {
+        if let Some((t, d)) = &s.truth {
+            let cd = chamfer_distance(&s.full, t, 50_000, 7) / d;
+            eprintln!(
+                "full mesh Chamfer to the truth {:.3}% of its diagonal",
+                100.0 * cd
+            );
+        }
+        if let Some(r) = &s.renders {
+            save_renders(&s.full, &s.views, r, "full_vertex_colours");
+        }
+        return Ok(());
+    }
     let dir = tempfile::tempdir()?;
     let full_vc = measure(
         &s,
@@ -239,6 +258,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for &b in &budgets {
         let o = ExportOptions {
             max_triangles: Some(b),
+            fraction_of_full: None,
             ..Default::default()
         };
         by_budget.push(measure(&s, &o, dir.path()));

@@ -251,6 +251,7 @@ fn the_textured_mesh_draws_like_the_field() {
     let textured_opts = FieldMeshOptions {
         export: ExportOptions {
             max_triangles: Some(full.triangles.len() / 5),
+            fraction_of_full: None,
             texture: Some(TextureSize::Side(512)),
             ..Default::default()
         },

@@ -3,7 +3,7 @@
 use clap::Args;
 use glam::DVec3;
 use objnerf::edit::Recolour;
-use objnerf::mesh::decimate::DEFAULT_MAX_TRIANGLES;
+use objnerf::mesh::decimate::{DEFAULT_FRACTION_OF_FULL, DEFAULT_MAX_TRIANGLES};
 use objnerf::mesh::frame::{Origin, Placement};
 use objnerf::mesh::from_field::{mesh_model, FieldMeshOptions};
 use objnerf::mesh::textured::{ExportOptions, TextureSize};
@@ -14,9 +14,10 @@ use std::path::PathBuf;
 /// How the written mesh is made (shared by `mesh` and `extract`).
 #[derive(Args, Debug)]
 pub struct MeshExportArgs {
-    /// Triangle budget: the mesh is decimated to at most this many triangles.
-    #[arg(long, default_value_t = DEFAULT_MAX_TRIANGLES, conflicts_with = "full")]
-    pub triangles: usize,
+    /// Triangle budget: the mesh is decimated to at most this many triangles (default: a fifth
+    /// of the marching-cubes mesh, at most 50 000).
+    #[arg(long, conflicts_with = "full")]
+    pub triangles: Option<usize>,
     /// Keep the full marching-cubes mesh (no decimation).
     #[arg(long)]
     pub full: bool,
@@ -51,7 +52,11 @@ impl MeshExportArgs {
             }
         };
         Ok(ExportOptions {
-            max_triangles: (!self.full).then_some(self.triangles),
+            max_triangles: (!self.full).then_some(self.triangles.unwrap_or(DEFAULT_MAX_TRIANGLES)),
+            fraction_of_full: match self.triangles {
+                Some(_) => None,
+                None => Some(DEFAULT_FRACTION_OF_FULL),
+            },
             texture: match self.vertex_colours {
                 true => None,
                 false => Some(TextureSize::parse(&self.texture)?),

@@ -6,10 +6,13 @@ use super::Mesh;
 use crate::util::warnings::{Stage, Warning};
 use glam::Vec3;
 
-/// More pieces than this (each at least the mesher's `min_component` of the largest, so not
-/// specks) means the object came out in fragments or with large floaters; a single object is
-/// one piece, or a few where thin parts (handles, legs) break at the field's resolution.
+/// More pieces than this (each at least [`PIECE_FRACTION`] of the largest, so not specks) means
+/// the object came out in fragments or with large floaters; a single object is one piece, or a
+/// few where thin parts (handles, legs) break at the field's resolution.
 pub const MAX_PIECES: usize = 3;
+/// A piece counts towards [`MAX_PIECES`] with at least this fraction of the largest piece's
+/// triangles (what the mesher dropped before it kept every piece).
+pub const PIECE_FRACTION: f64 = 0.05;
 /// More than this fraction of vertices on the box's faces (within [`BOX_FACE_VOXELS`]) means
 /// the surface is the box, not the object: the box is padded around the masks' visual hull, so
 /// a real surface touches it only where the object meets the floor or the frame.
@@ -38,7 +41,12 @@ pub fn fraction_on_box(mesh: &Mesh, lo: Vec3, hi: Vec3, voxel: f32) -> f64 {
 /// `voxel`.
 pub fn check_mesh(object: &str, mesh: &Mesh, lo: Vec3, hi: Vec3, voxel: f32) -> Vec<Warning> {
     let mut out = Vec::new();
-    let pieces = mesh.component_sizes().len();
+    let sizes = mesh.component_sizes();
+    let largest = sizes.first().copied().unwrap_or(0) as f64;
+    let pieces = sizes
+        .iter()
+        .filter(|s| **s as f64 >= PIECE_FRACTION * largest)
+        .count();
     if pieces > MAX_PIECES {
         out.push(
             Warning::new(

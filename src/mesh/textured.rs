@@ -4,7 +4,10 @@
 
 use super::atlas::{unwrap, AtlasReport};
 use super::bake::{bake_base_colour, BakeReport};
-use super::decimate::{decimate, DecimateReport, DEFAULT_MAX_TRIANGLES, DEFAULT_TOLERANCE_VOXELS};
+use super::decimate::{
+    decimate, DecimateReport, DEFAULT_FRACTION_OF_FULL, DEFAULT_MAX_TRIANGLES,
+    DEFAULT_TOLERANCE_VOXELS,
+};
 use super::{Mesh, Shading};
 use crate::edit::Recolour;
 use crate::error::Result;
@@ -75,6 +78,9 @@ fn surface_area(mesh: &Mesh) -> f64 {
 pub struct ExportOptions {
     /// Triangle budget (None: the full mesh, no decimation).
     pub max_triangles: Option<usize>,
+    /// A budget relative to the full mesh as well (the smaller applies): the default, a fifth
+    /// ([`DEFAULT_FRACTION_OF_FULL`]); None where a budget was asked for in triangles.
+    pub fraction_of_full: Option<f64>,
     /// Decimation stops where the surface would move this many finest voxels.
     pub tolerance_voxels: f32,
     /// The baked base-colour texture (None: vertex colours, no texture).
@@ -86,6 +92,7 @@ impl Default for ExportOptions {
     fn default() -> Self {
         ExportOptions {
             max_triangles: Some(DEFAULT_MAX_TRIANGLES),
+            fraction_of_full: Some(DEFAULT_FRACTION_OF_FULL),
             tolerance_voxels: DEFAULT_TOLERANCE_VOXELS,
             texture: Some(TextureSize::Auto),
             shading: Shading::Unlit,
@@ -125,7 +132,11 @@ pub fn export_mesh(
     let mut mesh = match opts.max_triangles {
         Some(_) => {
             let tol = opts.tolerance_voxels * field.voxel;
-            let (m, r) = decimate(full, opts.max_triangles, tol)?;
+            let budget = opts.max_triangles.map(|b| match opts.fraction_of_full {
+                Some(f) => b.min(((full.triangles.len() as f64 * f).ceil() as usize).max(1)),
+                None => b,
+            });
+            let (m, r) = decimate(full, budget, tol)?;
             report.decimate = Some(r);
             m
         }
