@@ -3,7 +3,6 @@
 use clap::Args;
 use glam::DVec3;
 use objnerf::edit::Recolour;
-use objnerf::mesh::decimate::{DEFAULT_FRACTION_OF_FULL, DEFAULT_MAX_TRIANGLES};
 use objnerf::mesh::frame::{Origin, Placement};
 use objnerf::mesh::from_field::{mesh_model, FieldMeshOptions};
 use objnerf::mesh::textured::{ExportOptions, TextureSize};
@@ -51,18 +50,24 @@ impl MeshExportArgs {
                 )))
             }
         };
+        let defaults = ExportOptions::default();
         Ok(ExportOptions {
-            max_triangles: (!self.full).then_some(self.triangles.unwrap_or(DEFAULT_MAX_TRIANGLES)),
+            // A budget asked for in triangles is that budget; none: the default's (a fifth of
+            // the full mesh, at most 50 000).
+            max_triangles: match self.full {
+                true => None,
+                false => self.triangles.or(defaults.max_triangles),
+            },
             fraction_of_full: match self.triangles {
                 Some(_) => None,
-                None => Some(DEFAULT_FRACTION_OF_FULL),
+                None => defaults.fraction_of_full,
             },
             texture: match self.vertex_colours {
                 true => None,
                 false => Some(TextureSize::parse(&self.texture)?),
             },
             shading,
-            ..Default::default()
+            ..defaults
         })
     }
 

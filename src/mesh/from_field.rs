@@ -266,3 +266,38 @@ pub fn mesh_model(
         },
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::model::FieldConfig;
+
+    /// A ball of soft matter, each voxel 0.3 opaque, so it is opaque only through several voxels
+    /// (fur, a partly covered voxel): the default cut finds its surface, the former 0.5 none.
+    #[test]
+    fn a_surface_opaque_only_over_several_voxels_is_meshed() {
+        let dims = [21, 21, 21];
+        let cfg = FieldConfig {
+            sh_degree: 0,
+            alpha_init: 0.01,
+            base_voxel: 0.1,
+        };
+        let mut f = Field::new(cfg, Vec3::splat(-1.0), Vec3::splat(1.0), dims);
+        let (soft, air) = (f.raw_for_alpha(0.3, 1.0), f.raw_for_alpha(1e-4, 1.0));
+        for v in 0..f.grid.num_vertices() {
+            let c = f.grid.vertex_coords(v as u32).map(|x| x as f32 * 0.1 - 1.0);
+            let r = Vec3::from(c).length();
+            *f.grid.density_mut(v) = if r < 0.6 { soft } else { air };
+        }
+        let opts = FieldMeshOptions::default();
+        let (mesh, report) = mesh_field(&f, "ball", &opts, Some(DVec3::Z)).unwrap();
+        assert!(report.triangles > 100, "{report:?}");
+        let (lo, hi) = mesh.bounds();
+        assert!((hi[0] - lo[0] - 1.2).abs() < 0.2, "{lo:?} {hi:?}");
+        let old = FieldMeshOptions {
+            iso_alpha: 0.5,
+            ..opts
+        };
+        assert!(mesh_field(&f, "ball", &old, Some(DVec3::Z)).is_err());
+    }
+}
