@@ -123,9 +123,15 @@ pub fn chamfer_distance(a: &Mesh, b: &Mesh, n: usize, seed: u64) -> f64 {
         return f64::INFINITY;
     }
     let (ga, gb) = (PointGrid::new(&pa), PointGrid::new(&pb));
-    let ab: f64 = pa.par_iter().map(|p| gb.nearest(*p)).sum::<f64>() / pa.len() as f64;
-    let ba: f64 = pb.par_iter().map(|p| ga.nearest(*p)).sum::<f64>() / pb.len() as f64;
-    0.5 * (ab + ba)
+    0.5 * (mean_distance(&pa, &gb) + mean_distance(&pb, &ga))
+}
+
+/// Mean distance from `points` to the nearest point of `to` (infinity for no points).
+fn mean_distance(points: &[DVec3], to: &PointGrid) -> f64 {
+    if points.is_empty() || to.cells.is_empty() {
+        return f64::INFINITY;
+    }
+    points.par_iter().map(|p| to.nearest(*p)).sum::<f64>() / points.len() as f64
 }
 
 /// Visibility is drawn at this many times each camera's resolution, so its depth test is finer
@@ -207,10 +213,7 @@ pub fn chamfer_distance_seen(
             .filter(|s| *s.1)
             .map(|s| *s.0)
             .collect();
-        if kept.is_empty() || grid.cells.is_empty() {
-            return f64::INFINITY;
-        }
-        kept.par_iter().map(|p| grid.nearest(*p)).sum::<f64>() / kept.len() as f64
+        mean_distance(&kept, grid)
     };
     let share = |s: &[bool]| s.iter().filter(|x| **x).count() as f64 / s.len().max(1) as f64;
     let (ab, ba) = (mean_to(&pa, &sa, &gb), mean_to(&pb, &sb, &ga));
