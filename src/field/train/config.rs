@@ -39,7 +39,8 @@ pub struct TrainConfig {
     pub lr_final_network: f32,
     pub beta1: f32,
     pub beta2: f32,
-    /// Total-variation weights (density, colour), applied to the voxels a batch touches.
+    /// Total-variation weights (density, colour), applied to the voxels a batch touches, as
+    /// DVGO's (`total_variation_add_grad`: the same weights mean the same pull; 0: off).
     pub tv_density: f32,
     pub tv_color: f32,
     /// Weight of the squared alpha error (the colour loss on a random background already

@@ -535,6 +535,13 @@ impl Trainer {
         let ch = grid.channels;
         let params = &grid.data;
         if cfg.tv_density > 0.0 || cfg.tv_color > 0.0 {
+            // DVGO's TV, so its weights carry over: each neighbour's difference clamped to
+            // [-1, 1], the weight over the batch (the colour loss is a mean) and six neighbours,
+            // times the grid's largest side over 128 (the same smoothing at any resolution).
+            let scale = dims.iter().copied().max().unwrap_or(1) as f32
+                / 128.0
+                / (6.0 * cfg.batch.max(1) as f32);
+            let (w_density, w_colour) = (cfg.tv_density * scale, cfg.tv_color * scale);
             // Reads parameters only, writes each slab's own gradients: order-independent.
             split_by(&mut self.grad, bounds, ch)
                 .into_par_iter()
@@ -559,10 +566,10 @@ impl Trainer {
                                 }
                                 let n = n as usize;
                                 for j in 0..ch {
-                                    let w = if j == 0 { cfg.tv_density } else { cfg.tv_color };
+                                    let w = if j == 0 { w_density } else { w_colour };
                                     let diff = params[value_index(v, j, ch)]
                                         - params[value_index(n, j, ch)];
-                                    gslab[value_index(v - v0, j, ch)] += w * 2.0 * diff;
+                                    gslab[value_index(v - v0, j, ch)] += w * diff.clamp(-1.0, 1.0);
                                 }
                             }
                         }
