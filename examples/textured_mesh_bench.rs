@@ -18,7 +18,8 @@
 //! out, inside their segmented masks).
 //! Writes `NAME.json` and `NAME.svg` (`--name`, default textured_mesh) into `--out` (default
 //! examples/results); `--renders DIR` also writes each mesh drawn at the first three views under
-//! the photos (inside the mask), to look at.
+//! the photos (inside the mask), to look at; `--budgets-only` measures the full mesh and
+//! `--budgets` alone (printed, no JSON).
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -251,8 +252,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
         dir.path(),
     );
-    let default = measure(&s, &ExportOptions::default(), dir.path());
-    let default_side = default.texture;
+    let budgets_only = args.iter().any(|a| a == "--budgets-only");
+    let default = (!budgets_only).then(|| measure(&s, &ExportOptions::default(), dir.path()));
+    let default_side = default.as_ref().and_then(|d| d.texture);
     let mut by_budget = Vec::new();
     let mut by_budget_vc = Vec::new();
     for &b in &budgets {
@@ -267,6 +269,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &ExportOptions { texture: None, ..o },
             dir.path(),
         ));
+    }
+    if budgets_only {
+        return Ok(());
     }
     let by_texture: Vec<Variant> = textures
         .iter()

@@ -1,7 +1,9 @@
 //! A small z-buffer rasteriser for meshes seen by a capture's cameras, to score an exported mesh
 //! against the photos: each pixel centre takes the colour of the nearest triangle, perspective-
-//! correct, from its vertex colours or its texture (bilinear), with no lighting (what an unlit
-//! material shows).
+//! correct, from its vertex colours or its texture, with no lighting (what an unlit material
+//! shows). A texture is read as the exported glTF's sampler asks a viewer to (trilinear over
+//! mipmaps: the level from the pixel's footprint in texels), so a texture finer than the pixels
+//! it lands on is averaged over each pixel, as in Blender or a web viewer, not point-sampled.
 
 use super::Mesh;
 use crate::field::{RayCamera, View};
@@ -10,11 +12,47 @@ use glam::{Vec2, Vec3};
 /// The mesh (in the camera's world frame) drawn into `cam`'s image: per pixel the colour in 0..1
 /// (the photos' sRGB values), None where no triangle covers the pixel centre.
 pub fn render_mesh(mesh: &Mesh, cam: &RayCamera) -> Vec<Option<[f32; 3]>> {
-    zbuffer(mesh, cam)
-        .1
-        .into_iter()
-        .map(|hit| hit.map(|(t, w)| shade(mesh, &mesh.triangles[t as usize], w)))
+    let (_, hits, proj) = zbuffer(mesh, cam);
+    let texture = match (&mesh.uvs, &mesh.texture) {
+        (Some(uvs), Some(img)) => Some((uvs, Mips::new(img))),
+        _ => None,
+    };
+    let w = cam.width as usize;
+    hits.into_iter()
+        .enumerate()
+        .map(|(i, hit)| {
+            let (t, wts) = hit?;
+            let tri = &mesh.triangles[t as usize];
+            Some(match &texture {
+                Some((uvs, mips)) => {
+                    let corners = tri.map(|v| proj[v as usize].expect("a drawn triangle"));
+                    let q = Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                    let uv_at = |q: Vec2| {
+                        let b = perspective_weights(&corners, q);
+                        (0..3).fold(Vec2::ZERO, |acc, k| {
+                            acc + Vec2::from(uvs[tri[k] as usize]) * b[k]
+                        })
+                    };
+                    let uv = uv_at(q);
+                    let du = uv_at(q + Vec2::X) - uv;
+                    let dv = uv_at(q + Vec2::Y) - uv;
+                    mips.sample(uv, du, dv)
+                }
+                None => shade(mesh, tri, wts),
+            })
+        })
         .collect()
+}
+
+/// Perspective-correct barycentric weights at screen point `q` of a triangle given by its
+/// corners' screen positions and 1/depth (outside the triangle: the same plane, extended).
+fn perspective_weights(c: &[(Vec2, f32); 3], q: Vec2) -> [f32; 3] {
+    let area = (c[1].0 - c[0].0).perp_dot(c[2].0 - c[0].0);
+    let l0 = (c[1].0 - q).perp_dot(c[2].0 - q) / area;
+    let l1 = (c[2].0 - q).perp_dot(c[0].0 - q) / area;
+    let l = [l0, l1, 1.0 - l0 - l1];
+    let iz = l[0] * c[0].1 + l[1] * c[1].1 + l[2] * c[2].1;
+    [0, 1, 2].map(|k| l[k] * c[k].1 / iz)
 }
 
 /// The mesh's depth (along the camera's axis, world units) at each pixel centre of `cam`'s image,
@@ -27,17 +65,19 @@ pub fn depth_map(mesh: &Mesh, cam: &RayCamera) -> Vec<f32> {
         .collect()
 }
 
+/// Each vertex's screen position and 1/depth (None: behind the camera).
+type Projected = Vec<Option<(Vec2, f32)>>;
+
 /// One z-buffer pass: per pixel the nearest triangle's 1/depth (0: none) and that triangle with
-/// its perspective-correct barycentric weights.
+/// its perspective-correct barycentric weights; and the vertices' projections.
 #[allow(clippy::type_complexity)]
-fn zbuffer(mesh: &Mesh, cam: &RayCamera) -> (Vec<f32>, Vec<Option<(u32, [f32; 3])>>) {
+fn zbuffer(mesh: &Mesh, cam: &RayCamera) -> (Vec<f32>, Vec<Option<(u32, [f32; 3])>>, Projected) {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut inv_z = vec![0f32; w * h];
     let mut out = vec![None; w * h];
     let centre = cam.center();
     let forward = cam.pose.camera_to_world_dir(glam::DVec3::Z).as_vec3();
-    // Screen position and 1/depth per vertex (None: behind the camera).
-    let proj: Vec<Option<(Vec2, f32)>> = mesh
+    let proj: Projected = mesh
         .positions
         .iter()
         .map(|p| {
@@ -88,17 +128,12 @@ fn zbuffer(mesh: &Mesh, cam: &RayCamera) -> (Vec<f32>, Vec<Option<(u32, [f32; 3]
             }
         }
     }
-    (inv_z, out)
+    (inv_z, out, proj)
 }
 
-/// The colour at barycentric `w` of triangle `t`: texture, else vertex colours, else grey.
+/// The colour at barycentric `w` of triangle `t` of a mesh without a texture: vertex colours,
+/// else grey.
 fn shade(mesh: &Mesh, t: &[u32; 3], w: [f32; 3]) -> [f32; 3] {
-    if let (Some(uvs), Some(img)) = (&mesh.uvs, &mesh.texture) {
-        let uv = t.iter().zip(w).fold(Vec2::ZERO, |acc, (&i, wi)| {
-            acc + Vec2::from(uvs[i as usize]) * wi
-        });
-        return bilinear(img, uv);
-    }
     if let Some(cols) = &mesh.colors {
         let mut c = [0f32; 3];
         for (&i, wi) in t.iter().zip(w) {
@@ -109,22 +144,72 @@ fn shade(mesh: &Mesh, t: &[u32; 3], w: [f32; 3]) -> [f32; 3] {
     [0.5; 3]
 }
 
-/// Bilinear sample at `uv` (glTF convention), clamped to the edge, 0..1.
-fn bilinear(img: &image::RgbImage, uv: Vec2) -> [f32; 3] {
-    let (w, h) = (img.width() as f32, img.height() as f32);
-    let x = (uv.x * w - 0.5).clamp(0.0, w - 1.0);
-    let y = (uv.y * h - 0.5).clamp(0.0, h - 1.0);
-    let (x0, y0) = (x.floor() as u32, y.floor() as u32);
-    let (x1, y1) = (
-        (x0 + 1).min(img.width() - 1),
-        (y0 + 1).min(img.height() - 1),
-    );
-    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-    let px = |x, y| img.get_pixel(x, y).0.map(|v| v as f32 / 255.0);
-    let (a, b, c, d) = (px(x0, y0), px(x1, y0), px(x0, y1), px(x1, y1));
-    [0, 1, 2].map(|k| {
-        (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
-    })
+/// A texture and its mipmaps (each level the 2 x 2 mean of the one before, down to 1 x 1), 0..1.
+struct Mips {
+    levels: Vec<(usize, usize, Vec<[f32; 3]>)>,
+}
+
+impl Mips {
+    fn new(img: &image::RgbImage) -> Mips {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let base: Vec<[f32; 3]> = img
+            .pixels()
+            .map(|p| p.0.map(|v| v as f32 / 255.0))
+            .collect();
+        let mut levels = vec![(w, h, base)];
+        while let Some((w, h, px)) = levels.last().filter(|l| l.0 > 1 || l.1 > 1) {
+            let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+            let at = |x: usize, y: usize| px[x.min(w - 1) + w * y.min(h - 1)];
+            let next = (0..nw * nh)
+                .map(|i| {
+                    let (x, y) = (2 * (i % nw), 2 * (i / nw));
+                    let q = [at(x, y), at(x + 1, y), at(x, y + 1), at(x + 1, y + 1)];
+                    [0, 1, 2].map(|k| 0.25 * (q[0][k] + q[1][k] + q[2][k] + q[3][k]))
+                })
+                .collect();
+            levels.push((nw, nh, next));
+        }
+        Mips { levels }
+    }
+
+    /// Trilinear sample at `uv` (glTF convention) for a pixel whose neighbours to the right and
+    /// below are `du`, `dv` away in uv (OpenGL's level of detail: log2 of the longer footprint).
+    fn sample(&self, uv: Vec2, du: Vec2, dv: Vec2) -> [f32; 3] {
+        let (w, h, _) = &self.levels[0];
+        let size = Vec2::new(*w as f32, *h as f32);
+        let rho = (du * size).length().max((dv * size).length());
+        let lod = rho
+            .max(1.0)
+            .log2()
+            .clamp(0.0, (self.levels.len() - 1) as f32);
+        let (l0, f) = (lod.floor() as usize, lod.fract());
+        let a = self.bilinear(l0, uv);
+        if f == 0.0 || l0 + 1 >= self.levels.len() {
+            return a;
+        }
+        let b = self.bilinear(l0 + 1, uv);
+        [0, 1, 2].map(|k| a[k] * (1.0 - f) + b[k] * f)
+    }
+
+    /// Bilinear sample of one level at `uv`, clamped to the edge.
+    fn bilinear(&self, level: usize, uv: Vec2) -> [f32; 3] {
+        let (w, h, px) = &self.levels[level];
+        let (w, h) = (*w, *h);
+        let x = (uv.x * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
+        let y = (uv.y * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let (a, b, c, d) = (
+            px[x0 + w * y0],
+            px[x1 + w * y0],
+            px[x0 + w * y1],
+            px[x1 + w * y1],
+        );
+        [0, 1, 2].map(|k| {
+            (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
+        })
+    }
 }
 
 /// Squared error summed over the pixels inside `view`'s mask (fully opaque) and their count,
@@ -194,5 +279,35 @@ mod tests {
         let depth = depth_map(&mesh, &rc);
         assert!((depth[32 + 64 * 32] - 4.0).abs() < 1e-5);
         assert_eq!(depth[2 + 64 * 2], f32::INFINITY);
+    }
+
+    #[test]
+    fn a_texture_finer_than_the_pixels_is_averaged_not_point_sampled() {
+        // A 256 x 256 checker of single black and white texels on a quad 32 px wide: each pixel
+        // covers 8 x 8 texels, so a viewer's trilinear sampling shows mid grey; one bilinear
+        // tap at the pixel centre would show near black or white.
+        let checker = image::RgbImage::from_fn(256, 256, |x, y| {
+            image::Rgb([if (x + y) % 2 == 0 { 255 } else { 0 }; 3])
+        });
+        let mesh = Mesh {
+            positions: vec![
+                [-1.0, -1.0, 0.0],
+                [1.0, -1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1.0, 1.0, 0.0],
+            ],
+            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+            texture: Some(std::sync::Arc::new(checker)),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        let cam = Camera::pinhole(64, 64, 64.0, 64.0, 32.0, 32.0);
+        let pose = Pose::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, DVec3::Y);
+        let img = render_mesh(&mesh, &RayCamera::new("v".into(), cam, pose));
+        let drawn: Vec<[f32; 3]> = img.into_iter().flatten().collect();
+        assert!(drawn.len() > 900, "{}", drawn.len());
+        for c in drawn {
+            assert!((c[0] - 0.5).abs() < 0.05, "{c:?}");
+        }
     }
 }
