@@ -212,17 +212,45 @@ impl Mips {
     }
 }
 
+/// Samples a side of each pixel when a mesh is scored: a photo's pixel is the mean of what its
+/// square sees (renderers and cameras antialias), so the mesh drawn for it is too, each sample
+/// reading the texture at its own footprint.
+pub const SCORE_SUBPIXELS: u32 = 4;
+
+/// The mesh drawn over white into `cam`'s image, each pixel the mean of `k` x `k` samples
+/// spread evenly over its square.
+pub fn render_mesh_antialiased(mesh: &Mesh, cam: &RayCamera, k: u32) -> Vec<[f32; 3]> {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let k = k.max(1) as usize;
+    let fine_cam = cam.camera.resized((w * k) as u32, (h * k) as u32);
+    let fine = render_mesh(mesh, &RayCamera::new(cam.name.clone(), fine_cam, cam.pose));
+    let inv = 1.0 / (k * k) as f32;
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut c = [0f32; 3];
+            for dy in 0..k {
+                for dx in 0..k {
+                    let s = fine[x * k + dx + w * k * (y * k + dy)].unwrap_or([1.0; 3]);
+                    (0..3).for_each(|j| c[j] += s[j] * inv);
+                }
+            }
+            c
+        })
+        .collect()
+}
+
 /// Squared error summed over the pixels inside `view`'s mask (fully opaque) and their count,
-/// the mesh drawn over white (a hole costs what white against the photo costs).
+/// the mesh drawn over white (a hole costs what white against the photo costs), antialiased
+/// ([`SCORE_SUBPIXELS`]).
 pub fn masked_squared_error(mesh: &Mesh, view: &View) -> (f64, usize) {
-    let img = render_mesh(mesh, &view.cam);
+    let img = render_mesh_antialiased(mesh, &view.cam, SCORE_SUBPIXELS);
     let mut se = 0f64;
     let mut n = 0usize;
-    for (px, target) in img.iter().zip(&view.rgba) {
+    for (c, target) in img.iter().zip(&view.rgba) {
         if target[3] != 255 {
             continue;
         }
-        let c = px.unwrap_or([1.0; 3]);
         for k in 0..3 {
             let d = c[k].clamp(0.0, 1.0) as f64 - target[k] as f64 / 255.0;
             se += d * d;
@@ -309,5 +337,29 @@ mod tests {
         for c in drawn {
             assert!((c[0] - 0.5).abs() < 0.05, "{c:?}");
         }
+    }
+
+    #[test]
+    fn an_antialiased_edge_pixel_mixes_the_mesh_with_white() {
+        // A red quad seen from 4.5: its left edge at x = 32 - 64 / 4.5 = 17.78 px, so pixel 17
+        // is a fifth covered (a quarter of its samples), pixel 20 wholly.
+        let mesh = Mesh {
+            positions: vec![
+                [-1.0, -1.0, 0.0],
+                [1.0, -1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1.0, 1.0, 0.0],
+            ],
+            colors: Some(vec![[1.0, 0.0, 0.0]; 4]),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        let cam = Camera::pinhole(64, 64, 64.0, 64.0, 32.0, 32.0);
+        let pose = Pose::look_at(DVec3::new(0.0, 0.0, 4.5), DVec3::ZERO, DVec3::Y);
+        let img = render_mesh_antialiased(&mesh, &RayCamera::new("v".into(), cam, pose), 4);
+        assert_eq!(img[20 + 64 * 32], [1.0, 0.0, 0.0]);
+        let edge = img[17 + 64 * 32];
+        assert!(edge[0] == 1.0 && (edge[1] - 0.75).abs() < 1e-6, "{edge:?}");
+        assert_eq!(img[10 + 64 * 32], [1.0; 3]);
     }
 }
