@@ -276,28 +276,40 @@ mod tests {
     use crate::scene::{Camera, Pose};
     use glam::DVec3;
 
-    #[test]
-    fn a_quad_in_front_fills_its_pixels_with_its_texture() {
-        // A 2x2 quad at z = 0 seen from z = 4 looking down: covers the middle of the image.
-        let mesh = Mesh {
+    /// A 2 x 2 quad at z = 0 (two triangles), textured with `texture` or red vertex colours.
+    fn quad(texture: Option<image::RgbImage>) -> Mesh {
+        let textured = texture.is_some();
+        Mesh {
             positions: vec![
                 [-1.0, -1.0, 0.0],
                 [1.0, -1.0, 0.0],
                 [1.0, 1.0, 0.0],
                 [-1.0, 1.0, 0.0],
             ],
-            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
-            texture: Some(std::sync::Arc::new(image::RgbImage::from_pixel(
-                4,
-                4,
-                image::Rgb([255, 0, 0]),
-            ))),
+            uvs: textured.then(|| vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+            texture: texture.map(std::sync::Arc::new),
+            colors: (!textured).then(|| vec![[1.0, 0.0, 0.0]; 4]),
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
-        };
+        }
+    }
+
+    /// A 64 x 64 camera (f = 64) at height `z` looking down at the quad.
+    fn camera_above(z: f64) -> RayCamera {
         let cam = Camera::pinhole(64, 64, 64.0, 64.0, 32.0, 32.0);
-        let pose = Pose::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, DVec3::Y);
-        let rc = RayCamera::new("v".into(), cam, pose);
+        let pose = Pose::look_at(DVec3::new(0.0, 0.0, z), DVec3::ZERO, DVec3::Y);
+        RayCamera::new("v".into(), cam, pose)
+    }
+
+    #[test]
+    fn a_quad_in_front_fills_its_pixels_with_its_texture() {
+        // The quad seen from z = 4 looking down: covers the middle of the image.
+        let mesh = quad(Some(image::RgbImage::from_pixel(
+            4,
+            4,
+            image::Rgb([255, 0, 0]),
+        )));
+        let rc = camera_above(4.0);
         let img = render_mesh(&mesh, &rc);
         // Half-width 1 at distance 4 with f = 64: 16 px either side of the centre.
         let covered = img.iter().filter(|p| p.is_some()).count();
@@ -317,21 +329,8 @@ mod tests {
         let checker = image::RgbImage::from_fn(256, 256, |x, y| {
             image::Rgb([if (x + y) % 2 == 0 { 255 } else { 0 }; 3])
         });
-        let mesh = Mesh {
-            positions: vec![
-                [-1.0, -1.0, 0.0],
-                [1.0, -1.0, 0.0],
-                [1.0, 1.0, 0.0],
-                [-1.0, 1.0, 0.0],
-            ],
-            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
-            texture: Some(std::sync::Arc::new(checker)),
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-            ..Default::default()
-        };
-        let cam = Camera::pinhole(64, 64, 64.0, 64.0, 32.0, 32.0);
-        let pose = Pose::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, DVec3::Y);
-        let img = render_mesh(&mesh, &RayCamera::new("v".into(), cam, pose));
+        let mesh = quad(Some(checker));
+        let img = render_mesh(&mesh, &camera_above(4.0));
         let drawn: Vec<[f32; 3]> = img.into_iter().flatten().collect();
         assert!(drawn.len() > 900, "{}", drawn.len());
         for c in drawn {
@@ -343,20 +342,8 @@ mod tests {
     fn an_antialiased_edge_pixel_mixes_the_mesh_with_white() {
         // A red quad seen from 4.5: its left edge at x = 32 - 64 / 4.5 = 17.78 px, so pixel 17
         // is a fifth covered (a quarter of its samples), pixel 20 wholly.
-        let mesh = Mesh {
-            positions: vec![
-                [-1.0, -1.0, 0.0],
-                [1.0, -1.0, 0.0],
-                [1.0, 1.0, 0.0],
-                [-1.0, 1.0, 0.0],
-            ],
-            colors: Some(vec![[1.0, 0.0, 0.0]; 4]),
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-            ..Default::default()
-        };
-        let cam = Camera::pinhole(64, 64, 64.0, 64.0, 32.0, 32.0);
-        let pose = Pose::look_at(DVec3::new(0.0, 0.0, 4.5), DVec3::ZERO, DVec3::Y);
-        let img = render_mesh_antialiased(&mesh, &RayCamera::new("v".into(), cam, pose), 4);
+        let mesh = quad(None);
+        let img = render_mesh_antialiased(&mesh, &camera_above(4.5), 4);
         assert_eq!(img[20 + 64 * 32], [1.0, 0.0, 0.0]);
         let edge = img[17 + 64 * 32];
         assert!(edge[0] == 1.0 && (edge[1] - 0.75).abs() < 1e-6, "{edge:?}");
