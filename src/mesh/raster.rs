@@ -27,15 +27,16 @@ pub fn render_mesh(mesh: &Mesh, cam: &RayCamera) -> Vec<Option<[f32; 3]>> {
                 Some((uvs, mips)) => {
                     let corners = tri.map(|v| proj[v as usize].expect("a drawn triangle"));
                     let q = Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                    let uv_at = |q: Vec2| {
-                        let b = perspective_weights(&corners, q);
+                    let uv_of = |b: [f32; 3]| {
                         (0..3).fold(Vec2::ZERO, |acc, k| {
                             acc + Vec2::from(uvs[tri[k] as usize]) * b[k]
                         })
                     };
-                    let uv = uv_at(q);
-                    let du = uv_at(q + Vec2::X) - uv;
-                    let dv = uv_at(q + Vec2::Y) - uv;
+                    // The pixel's own weights come from the z-buffer; its neighbours' (for the
+                    // footprint) from the same plane, extended.
+                    let uv = uv_of(wts);
+                    let du = uv_of(perspective_weights(&corners, q + Vec2::X)) - uv;
+                    let dv = uv_of(perspective_weights(&corners, q + Vec2::Y)) - uv;
                     mips.sample(uv, du, dv)
                 }
                 None => shade(mesh, tri, wts),
