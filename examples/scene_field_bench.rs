@@ -3,7 +3,7 @@
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
 //! held out), SF_NET, SF_SCENE_NET, SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C, SF_FREE, SF_DEPTH_W (a ring's or
-//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's), SF_TERM (training's early termination), SF_WHOLE (train for the whole SF_SECONDS, the schedule
+//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
 //! following the time, as `objnerf train --time-budget` does).
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
@@ -77,6 +77,7 @@ fn main() -> objnerf::Result<()> {
             lr_color: env("SF_LR_C").unwrap_or(d.train.lr_color),
             render: objnerf::field::march::RenderOptions {
                 term_thresh: env("SF_TERM").unwrap_or(d.train.render.term_thresh),
+                step: env("SF_SAMPLE_STEP").unwrap_or(d.train.render.step),
                 ..d.train.render
             },
             ..d.train.clone()

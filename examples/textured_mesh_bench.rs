@@ -19,7 +19,7 @@
 //! Writes `NAME.json` and `NAME.svg` (`--name`, default textured_mesh) into `--out` (default
 //! examples/results); `--renders DIR` also writes each mesh drawn at the first three views under
 //! the photos (inside the mask), to look at; `--budgets-only` measures the full mesh and
-//! `--budgets` alone (printed, no JSON).
+//! `--budgets` alone (printed, no JSON), each at the first of `--textures` where it is given.
 
 #[path = "support/bench.rs"]
 mod bench;
@@ -257,10 +257,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let default_side = default.as_ref().and_then(|d| d.texture);
     let mut by_budget = Vec::new();
     let mut by_budget_vc = Vec::new();
+    // Budgets alone are measured at the texture asked for, if any (else the automatic size).
+    let budget_texture = match arg(&args, "--textures") {
+        Some(_) if budgets_only => Some(TextureSize::Side(textures[0])),
+        _ => ExportOptions::default().texture,
+    };
     for &b in &budgets {
         let o = ExportOptions {
             max_triangles: Some(b),
             fraction_of_full: None,
+            texture: budget_texture,
             ..Default::default()
         };
         by_budget.push(measure(&s, &o, dir.path()));
