@@ -8,6 +8,7 @@
 //! seam read the chart's own colour, and what is still empty takes the mean colour.
 
 use super::colour::surface_colour;
+use super::visibility::SeenFrom;
 use super::Mesh;
 use crate::edit::Recolour;
 use crate::error::{Error, Result};
@@ -30,13 +31,13 @@ const DILATE_RINGS: usize = 16;
 
 /// Bake the base colour of `mesh` (with `uvs`, in the field's world frame) into a `size` x
 /// `size` sRGB image. `slack`: how far (world units) the mesh may lie off the field's surface;
-/// `seen_from` (the training cameras) and `recolour`: as for vertex colours.
+/// `seen` (the training cameras, which of them see a point) and `recolour`: as for vertex colours.
 pub fn bake_base_colour(
     field: &Field,
     mesh: &Mesh,
     size: u32,
     slack: f32,
-    seen_from: &[Vec3],
+    seen: &SeenFrom,
     recolour: Option<Recolour>,
 ) -> Result<(image::RgbImage, BakeReport)> {
     let uvs = mesh
@@ -57,7 +58,7 @@ pub fn bake_base_colour(
             for_texels_in(uv, s, |idx, w| {
                 let q = p[0] * w[0] + p[1] * w[1] + p[2] * w[2];
                 let nq = (n[0] * w[0] + n[1] * w[1] + n[2] * w[2]).normalize_or(n[0]);
-                let c = surface_colour(field, q, nq, slack, seen_from);
+                let c = surface_colour(field, q, nq, slack, seen);
                 out.push((idx, recolour.map_or(c, |r| r.apply(c))));
             });
             out.into_iter()

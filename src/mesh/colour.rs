@@ -8,12 +8,14 @@
 //! cameras saw there. The mean is weighted by the cosine of each camera's angle to the normal (a
 //! head-on view sees the point sharpest). SH fields and fields with a colour network alike: the
 //! network's per-direction part is computed once a ray, its per-sample part only at the few
-//! samples with weight. Occlusion is not tested. Without the training cameras (models written
+//! samples with weight. Cameras whose view of the point the mesh itself blocks are left out
+//! where the depth maps are built ([`super::visibility`]). Without the training cameras (models written
 //! before they were recorded), or where no camera's ray meets the surface, an SH field gives its
 //! DC term (the mean over all directions) composited along the inward normal, a network field
 //! its view along the normal.
 
 use super::fill::EMPTY;
+use super::visibility::SeenFrom;
 use crate::field::colour_net::MAX_ACTIVATIONS;
 use crate::field::model::{Field, RayShading, MAX_CHANNELS};
 use crate::field::sh::{sh_basis, SH_TERMS};
@@ -110,17 +112,31 @@ fn samples_along(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Vec<(Vec3, f3
 }
 
 /// Colour at a surface point `p` with normal `n` (see the module's notes); `slack` (world units)
-/// widens the march both ways for a point off the iso-surface (a decimated mesh's); `centres`:
-/// the training cameras.
-pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, centres: &[Vec3]) -> [f32; 3] {
-    let mut facing: Vec<(Vec3, f32)> = centres
+/// widens the march both ways for a point off the iso-surface (a decimated mesh's); `seen`: the
+/// training cameras and which of them see the point.
+pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFrom) -> [f32; 3] {
+    let facing_all: Vec<(usize, Vec3, f32)> = seen
+        .centres
         .iter()
-        .filter_map(|c| {
+        .enumerate()
+        .filter_map(|(i, c)| {
             let to_cam = (*c - p).normalize_or_zero();
             let cos = to_cam.dot(n);
-            (cos > 0.05).then_some((-to_cam, cos))
+            (cos > 0.05).then_some((i, -to_cam, cos))
         })
         .collect();
+    // The cameras whose view of the point is not blocked; where every facing camera's is (a
+    // point the depth maps miss), all of them, as without the test.
+    let visible: Vec<(Vec3, f32)> = facing_all
+        .iter()
+        .filter(|(i, _, _)| seen.sees(*i, p, slack))
+        .map(|&(_, d, c)| (d, c))
+        .collect();
+    let mut facing = if visible.is_empty() {
+        facing_all.iter().map(|&(_, d, c)| (d, c)).collect()
+    } else {
+        visible
+    };
     // The most head-on cameras only: they see the point sharpest, and the cost stays bounded.
     facing.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
     facing.truncate(MAX_CAMERAS);

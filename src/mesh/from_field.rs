@@ -12,6 +12,7 @@ use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
 use super::frame::{GltfFrame, Placement};
 use super::io::MeshFormat;
 use super::textured::{export_mesh, ExportOptions, ExportReport};
+use super::visibility::{occlusion_tolerance, SeenFrom};
 use super::{marching::marching_cubes, Mesh};
 use crate::error::{Error, Result};
 use crate::field::model::Field;
@@ -172,13 +173,14 @@ pub fn mesh_field(
         0
     };
     let recolour = opts.recolour.map(|r| r.prepare());
+    let seen = SeenFrom::with_occlusion(&opts.seen_from, &mesh, occlusion_tolerance(field));
     let colors: Vec<[f32; 3]> = mesh
         .positions
         .par_iter()
         .zip(&mesh.normals)
         .map(|(p, n)| {
             let (p, n) = (Vec3::from_array(*p), Vec3::from_array(*n));
-            let c = surface_colour(field, p, n, 0.0, &opts.seen_from);
+            let c = surface_colour(field, p, n, 0.0, &seen);
             recolour.map_or(c, |r| r.apply(c))
         })
         .collect();

@@ -16,6 +16,7 @@ pub mod mesh_checks;
 pub mod raster;
 mod tables;
 pub mod textured;
+pub mod visibility;
 
 use glam::{DMat4, DVec3};
 

@@ -8,6 +8,7 @@ use super::decimate::{
     decimate, DecimateReport, DEFAULT_FRACTION_OF_FULL, DEFAULT_MAX_TRIANGLES,
     DEFAULT_TOLERANCE_VOXELS,
 };
+use super::visibility::{occlusion_tolerance, SeenFrom};
 use super::{Mesh, Shading};
 use crate::edit::Recolour;
 use crate::error::Result;
@@ -152,7 +153,9 @@ pub fn export_mesh(
         let t = Instant::now();
         // The bake reads the field around each texel out to the decimation's own error.
         let slack = report.decimate.as_ref().map_or(0.0, |d| d.error);
-        let (img, bake) = bake_base_colour(field, &m, size, slack, seen_from, recolour)?;
+        // Which cameras see a texel: depth maps of the full mesh, the reference surface.
+        let seen = SeenFrom::with_occlusion(seen_from, full, occlusion_tolerance(field));
+        let (img, bake) = bake_base_colour(field, &m, size, slack, &seen, recolour)?;
         report.bake_seconds = t.elapsed().as_secs_f64();
         m.colors = None;
         m.texture = Some(std::sync::Arc::new(img));
