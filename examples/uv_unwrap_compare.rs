@@ -183,7 +183,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = tempfile::tempdir()?;
     let mut rows = Vec::new();
     for budget in [2_000, 5_000, 20_000, full.triangles.len()] {
-        let (m, _) = decimate(&full, Some(budget), 0.0)?;
+        let (m, _) = decimate(&full, Some(budget), 0.0, 0.0)?;
         let a = with_uvunwrap(&m);
         let b = with_xatlas(&m, &py, dir.path());
         eprintln!(

@@ -6,7 +6,7 @@ use super::atlas::{unwrap, AtlasReport};
 use super::bake::{bake_base_colour, BakeReport};
 use super::decimate::{
     decimate, DecimateReport, DEFAULT_FRACTION_OF_FULL, DEFAULT_MAX_TRIANGLES,
-    DEFAULT_TOLERANCE_VOXELS,
+    DEFAULT_TOLERANCE_VOXELS, VERTEX_COLOUR_WEIGHT,
 };
 use super::visibility::{occlusion_tolerance, SeenFrom};
 use super::{Mesh, Shading};
@@ -137,7 +137,13 @@ pub fn export_mesh(
                 Some(f) => b.min(((full.triangles.len() as f64 * f).ceil() as usize).max(1)),
                 None => b,
             });
-            let (m, r) = decimate(full, budget, tol)?;
+            // Colour edges keep their vertices where the colour is in the vertices; with a
+            // texture the page holds it and the geometry alone decides.
+            let colour_weight = match opts.texture {
+                Some(_) => 0.0,
+                None => VERTEX_COLOUR_WEIGHT,
+            };
+            let (m, r) = decimate(full, budget, tol, colour_weight)?;
             report.decimate = Some(r);
             m
         }
