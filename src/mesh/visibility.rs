@@ -24,8 +24,20 @@ pub fn occlusion_tolerance(field: &Field) -> f32 {
 }
 
 /// Pixels across a camera's depth map of the mesh's bounding sphere (the training views hold
-/// an object at a few hundred pixels across; the map matches that).
+/// an object at a few hundred pixels across; the map matches that), at most.
 const MAP_SIZE: u32 = 512;
+
+/// All the maps together stay within this many bytes: a capture of many views (a video's
+/// hundreds of frames) gets coarser maps rather than hundreds of MiB of them, down to
+/// [`MIN_MAP_SIZE`].
+const MAPS_BUDGET_BYTES: usize = 128 << 20;
+const MIN_MAP_SIZE: u32 = 128;
+
+/// The side of each of `cameras` depth maps.
+fn map_size(cameras: usize) -> u32 {
+    let per = MAPS_BUDGET_BYTES / (cameras.max(1) * std::mem::size_of::<f32>());
+    ((per as f64).sqrt() as u32).clamp(MIN_MAP_SIZE, MAP_SIZE)
+}
 
 /// The training cameras' centres and, where built, each camera's depth map of the mesh.
 pub struct SeenFrom {
@@ -64,10 +76,11 @@ impl SeenFrom {
             return SeenFrom::centres_only(centres);
         }
         let (centre, radius) = ((lo + hi) * 0.5, ((hi - lo) * 0.5).length().max(1e-6));
+        let size = map_size(centres.len());
         let maps = centres
             .par_iter()
             .map(|c| {
-                let cam = map_camera(*c, centre, radius)?;
+                let cam = map_camera(*c, centre, radius, size)?;
                 let depth = depth_map(mesh, &cam);
                 Some(DepthMap { cam, depth })
             })
@@ -104,17 +117,17 @@ impl SeenFrom {
     }
 }
 
-/// A square pinhole camera at `eye` looking at `centre`, its field of view just holding the
-/// sphere of `radius` there; None when the eye is within the sphere.
-fn map_camera(eye: Vec3, centre: Vec3, radius: f32) -> Option<RayCamera> {
+/// A square pinhole camera of `size` pixels at `eye` looking at `centre`, its field of view just
+/// holding the sphere of `radius` there; None when the eye is within the sphere.
+fn map_camera(eye: Vec3, centre: Vec3, radius: f32, size: u32) -> Option<RayCamera> {
     let dist = (centre - eye).length();
     if !dist.is_finite() || dist <= radius * 1.02 {
         return None;
     }
     let half_angle = (radius / dist).asin() * 1.02;
-    let f = 0.5 * MAP_SIZE as f64 / (half_angle as f64).tan();
-    let c = 0.5 * MAP_SIZE as f64;
-    let camera = Camera::pinhole(MAP_SIZE, MAP_SIZE, f, f, c, c);
+    let f = 0.5 * size as f64 / (half_angle as f64).tan();
+    let c = 0.5 * size as f64;
+    let camera = Camera::pinhole(size, size, f, f, c, c);
     let dir = (centre - eye).as_dvec3() / dist as f64;
     let up = if dir.z.abs() < 0.9 {
         DVec3::Z
@@ -181,6 +194,14 @@ mod tests {
         // Without maps every camera sees everything.
         let all = SeenFrom::centres_only(&cams);
         assert!(all.sees(1, near_face, 0.0) && all.sees(0, far_face, 0.0));
+    }
+
+    #[test]
+    fn many_cameras_share_a_memory_budget() {
+        assert_eq!(map_size(100), MAP_SIZE); // lego's 100 views: full size
+        assert!(map_size(300) < MAP_SIZE && map_size(300) > MIN_MAP_SIZE);
+        assert!(300 * (map_size(300) as usize).pow(2) * 4 <= MAPS_BUDGET_BYTES);
+        assert_eq!(map_size(100_000), MIN_MAP_SIZE);
     }
 
     #[test]
