@@ -115,28 +115,22 @@ fn samples_along(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Vec<(Vec3, f3
 /// widens the march both ways for a point off the iso-surface (a decimated mesh's); `seen`: the
 /// training cameras and which of them see the point.
 pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFrom) -> [f32; 3] {
-    let facing_all: Vec<(usize, Vec3, f32)> = seen
+    // (direction, cosine, whether the camera's view of the point is not blocked)
+    let mut facing: Vec<(Vec3, f32, bool)> = seen
         .centres
         .iter()
         .enumerate()
         .filter_map(|(i, c)| {
             let to_cam = (*c - p).normalize_or_zero();
             let cos = to_cam.dot(n);
-            (cos > 0.05).then_some((i, -to_cam, cos))
+            (cos > 0.05).then(|| (-to_cam, cos, seen.sees(i, p, slack)))
         })
         .collect();
-    // The cameras whose view of the point is not blocked; where every facing camera's is (a
-    // point the depth maps miss), all of them, as without the test.
-    let visible: Vec<(Vec3, f32)> = facing_all
-        .iter()
-        .filter(|(i, _, _)| seen.sees(*i, p, slack))
-        .map(|&(_, d, c)| (d, c))
-        .collect();
-    let mut facing = if visible.is_empty() {
-        facing_all.iter().map(|&(_, d, c)| (d, c)).collect()
-    } else {
-        visible
-    };
+    // The cameras that see the point; where none does (a point the depth maps miss), every
+    // facing one, as without the test.
+    if facing.iter().any(|f| f.2) {
+        facing.retain(|f| f.2);
+    }
     // The most head-on cameras only: they see the point sharpest, and the cost stays bounded.
     facing.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
     facing.truncate(MAX_CAMERAS);
@@ -144,7 +138,7 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFr
     // surface still shows what the cameras saw there), weighted by the cosine.
     let mut acc = [0f32; 3];
     let mut csum = 0f32;
-    for (dir, cos) in &facing {
+    for (dir, cos, _) in &facing {
         let Some(c) = along_ray(field, p, *dir, slack / cos.max(0.25)) else {
             continue;
         };

@@ -73,29 +73,25 @@ pub fn decimate(
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let before = mesh.triangles.len();
     let opts = meshopt::SimplifyOptions::ErrorAbsolute;
-    let colours: Option<Vec<f32>> = match &mesh.colors {
-        Some(c) if colour_weight > 0.0 => Some(c.iter().flatten().copied().collect()),
+    // The colours as meshoptimizer's attributes, and no vertex locked.
+    let weighed: Option<(Vec<f32>, Vec<bool>)> = match &mesh.colors {
+        Some(c) if colour_weight > 0.0 => Some((
+            c.iter().flatten().copied().collect(),
+            vec![false; mesh.positions.len()],
+        )),
         _ => None,
     };
-    let unlocked = vec![
-        false;
-        if colours.is_some() {
-            mesh.positions.len()
-        } else {
-            0
-        }
-    ];
     // One simplifier pass from `from` down to `target` indices within `target_error`.
     let simplify = |from: &[u32], target: usize, target_error: f32| {
         let mut e = 0f32;
-        let out = match &colours {
-            Some(attrs) => meshopt::simplify_with_attributes_and_locks_decoder(
+        let out = match &weighed {
+            Some((attrs, unlocked)) => meshopt::simplify_with_attributes_and_locks_decoder(
                 from,
                 &mesh.positions,
                 attrs,
                 &[colour_weight; 3],
                 std::mem::size_of::<[f32; 3]>(),
-                &unlocked,
+                unlocked,
                 target,
                 target_error,
                 opts,

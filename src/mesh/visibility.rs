@@ -47,10 +47,12 @@ pub struct SeenFrom {
     tolerance: f32,
 }
 
-/// One camera's view of the mesh: the camera (looking at the mesh's centre) and its depth along
-/// the camera's axis per pixel (infinity: no surface).
+/// One camera's view of the mesh: the camera (looking at the mesh's centre, its centre and axis
+/// kept for the per-point test) and its depth along that axis per pixel (infinity: no surface).
 struct DepthMap {
     cam: RayCamera,
+    centre: Vec3,
+    forward: Vec3,
     depth: Vec<f32>,
 }
 
@@ -68,10 +70,8 @@ impl SeenFrom {
     /// where no part of `mesh` lies more than `tolerance` (world units) in front of it. A camera
     /// within the mesh's bounding sphere gets no map (it sees every point it faces).
     pub fn with_occlusion(centres: &[Vec3], mesh: &Mesh, tolerance: f32) -> SeenFrom {
-        let (lo, hi) = mesh.positions.iter().fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(Vec3::from(*p)), hi.max(Vec3::from(*p))),
-        );
+        let (lo, hi) = mesh.bounds();
+        let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
         if mesh.triangles.is_empty() || !lo.is_finite() || !hi.is_finite() {
             return SeenFrom::centres_only(centres);
         }
@@ -82,7 +82,13 @@ impl SeenFrom {
             .map(|c| {
                 let cam = map_camera(*c, centre, radius, size)?;
                 let depth = depth_map(mesh, &cam);
-                Some(DepthMap { cam, depth })
+                let forward = cam.pose.camera_to_world_dir(DVec3::Z).as_vec3();
+                Some(DepthMap {
+                    centre: cam.center(),
+                    forward,
+                    cam,
+                    depth,
+                })
             })
             .collect();
         SeenFrom {
@@ -101,8 +107,7 @@ impl SeenFrom {
         let Some((x, y)) = map.cam.project(p) else {
             return true;
         };
-        let forward = map.cam.pose.camera_to_world_dir(DVec3::Z).as_vec3();
-        let z = (p - map.cam.center()).dot(forward);
+        let z = (p - map.centre).dot(map.forward);
         // The deepest surface among the pixel and its neighbours: a point on a silhouette or on
         // a surface seen at a grazing angle is not hidden by its own pixel's neighbour.
         let (w, h) = (map.cam.width as i64, map.cam.height as i64);
