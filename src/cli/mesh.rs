@@ -161,6 +161,7 @@ impl MeshCmd {
                 .transpose()
                 .map_err(|e| Error::invalid(format!("--recolour: {e}")))?,
             seen_from: Vec::new(),
+            vertex_colours: true,
             export: self.export.export()?,
             placement: self.export.placement(Origin::parse(&self.origin)?),
         };

@@ -50,6 +50,10 @@ pub struct FieldMeshOptions {
     /// field's towards those on its outer side (empty: the view-independent colour; see
     /// [`super::colour`]). [`mesh_model`] reads them from the model's notes.
     pub seen_from: Vec<Vec3>,
+    /// Give the marching-cubes mesh vertex colours (default). Off where only a texture baked
+    /// from the field is written (`objnerf mesh` to .glb): the colours of a million vertices read
+    /// from 16 cameras each were a third of lego's export, and nothing used them.
+    pub vertex_colours: bool,
     /// Decimation, texture and material of the mesh written ([`export_mesh`]).
     pub export: ExportOptions,
     /// Origin and scale in the glTF (.glb, .obj).
@@ -65,6 +69,7 @@ impl Default for FieldMeshOptions {
             fill_cavities: true,
             recolour: None,
             seen_from: Vec::new(),
+            vertex_colours: true,
             export: ExportOptions::default(),
             placement: Placement {
                 origin: super::frame::Origin::Base,
@@ -172,8 +177,25 @@ pub fn mesh_field(
     } else {
         0
     };
+    if opts.vertex_colours {
+        colour_vertices(field, &mut mesh, opts);
+    }
+    let report = FieldMeshReport {
+        sample_dims: dims,
+        iso_alpha: opts.iso_alpha,
+        iso_raw: iso,
+        pieces_removed,
+        cavity_samples_filled,
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+    };
+    Ok((mesh, report))
+}
+
+/// Each vertex's colour from the training cameras that see it ([`surface_colour`]).
+fn colour_vertices(field: &Field, mesh: &mut Mesh, opts: &FieldMeshOptions) {
     let recolour = opts.recolour.map(|r| r.prepare());
-    let seen = SeenFrom::with_occlusion(&opts.seen_from, &mesh, occlusion_tolerance(field));
+    let seen = SeenFrom::with_occlusion(&opts.seen_from, mesh, occlusion_tolerance(field));
     let colors: Vec<[f32; 3]> = mesh
         .positions
         .par_iter()
@@ -185,16 +207,6 @@ pub fn mesh_field(
         })
         .collect();
     mesh.colors = Some(colors);
-    let report = FieldMeshReport {
-        sample_dims: dims,
-        iso_alpha: opts.iso_alpha,
-        iso_raw: iso,
-        pieces_removed,
-        cavity_samples_filled,
-        vertices: mesh.positions.len(),
-        triangles: mesh.triangles.len(),
-    };
-    Ok((mesh, report))
 }
 
 /// What `objnerf mesh` wrote.
@@ -238,6 +250,8 @@ pub fn mesh_model(
     if format != MeshFormat::Glb {
         opts.export.texture = None;
     }
+    // A texture holds the colour: the full mesh's own vertex colours would go unused.
+    opts.vertex_colours = opts.export.texture.is_none();
     let (full, report) = mesh_field(&model.field, name, &opts, up)
         .map_err(|e| Error::invalid(format!("{}: {e}", model_path.display())))?;
     let (mesh, export) = export_mesh(
