@@ -7,7 +7,7 @@
 //! from the charts' edges across the gutters, so bilinear filtering and mipmaps at a chart's
 //! seam read the chart's own colour, and what is still empty takes the mean colour.
 
-use super::colour::surface_colour;
+use super::colour::{surface_colour, RayReach};
 use super::visibility::SeenFrom;
 use super::Mesh;
 use crate::edit::Recolour;
@@ -30,13 +30,14 @@ pub struct BakeReport {
 const DILATE_RINGS: usize = 16;
 
 /// Bake the base colour of `mesh` (with `uvs`, in the field's world frame) into a `size` x
-/// `size` sRGB image. `slack`: how far (world units) the mesh may lie off the field's surface;
-/// `seen` (the training cameras, which of them see a point) and `recolour`: as for vertex colours.
+/// `size` sRGB image. `reach`: how far (the mesh may lie off the field's surface) and how finely
+/// each camera's ray through a texel is read; `seen` (the training cameras, which of them see a
+/// point) and `recolour`: as for vertex colours.
 pub fn bake_base_colour(
     field: &Field,
     mesh: &Mesh,
     size: u32,
-    slack: f32,
+    reach: RayReach,
     seen: &SeenFrom,
     recolour: Option<Recolour>,
 ) -> Result<(image::RgbImage, BakeReport)> {
@@ -58,7 +59,7 @@ pub fn bake_base_colour(
             for_texels_in(uv, s, |idx, w| {
                 let q = p[0] * w[0] + p[1] * w[1] + p[2] * w[2];
                 let nq = (n[0] * w[0] + n[1] * w[1] + n[2] * w[2]).normalize_or(n[0]);
-                let c = surface_colour(field, q, nq, slack, seen);
+                let c = surface_colour(field, q, nq, reach, seen);
                 out.push((idx, recolour.map_or(c, |r| r.apply(c))));
             });
             out.into_iter()

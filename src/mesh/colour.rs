@@ -29,6 +29,24 @@ use glam::Vec3;
 /// and cost lego's full mesh 0.04.
 const MAX_CAMERAS: usize = 16;
 
+/// How far along a camera's ray through a surface point, and how finely, the field is read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayReach {
+    /// World units the read reaches further both ways, for a point off the field's iso-surface
+    /// (a decimated mesh's): 0 for the marching-cubes mesh itself.
+    pub slack: f32,
+    /// The step between samples, in the field's finest voxels.
+    pub step_voxels: f32,
+}
+
+impl RayReach {
+    /// The marching-cubes mesh's vertices: on the surface, read a quarter voxel apart.
+    pub const ON_SURFACE: RayReach = RayReach {
+        slack: 0.0,
+        step_voxels: 0.25,
+    };
+}
+
 /// The training cameras' centres in a model's notes (`view_centres`; empty when absent).
 pub fn view_centres(notes: &serde_json::Value) -> Vec<Vec3> {
     notes["view_centres"]
@@ -89,15 +107,16 @@ fn ray_shading(field: &Field, dir: Vec3, dc_only: bool) -> RayShading {
 }
 
 /// Samples with their compositing weights along `dir` through `p`, from half a voxel (and
-/// `slack`) before it to two voxels (and `slack`) past it (at most 64 + 2·64).
-fn samples_along(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Vec<(Vec3, f32)> {
-    let step = 0.25 * field.voxel;
+/// the reach's slack, at most 16 voxels) before it to two voxels (and the slack) past it.
+fn samples_along(field: &Field, p: Vec3, dir: Vec3, reach: RayReach) -> Vec<(Vec3, f32)> {
+    let step = reach.step_voxels * field.voxel;
     let delta = step / field.config.base_voxel;
     let shift = field.shift();
     let mut trans = 1.0f32;
     let mut out = Vec::with_capacity(16);
-    let extra = (slack / step).ceil().clamp(0.0, 64.0) as i32;
-    for i in -2 - extra..8 + extra {
+    let steps_of = |voxels: f32| (voxels / reach.step_voxels).ceil() as i32;
+    let extra = ((reach.slack / step).ceil() as i32).clamp(0, steps_of(16.0));
+    for i in -steps_of(0.5) - extra..steps_of(2.0) + extra {
         let q = p + dir * (i as f32 * step);
         let raw = raw_at(field, q);
         if raw <= EMPTY {
@@ -116,10 +135,16 @@ fn samples_along(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Vec<(Vec3, f3
     out
 }
 
-/// Colour at a surface point `p` with normal `n` (see the module's notes); `slack` (world units)
-/// widens the march both ways for a point off the iso-surface (a decimated mesh's); `seen`: the
-/// training cameras and which of them see the point.
-pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFrom) -> [f32; 3] {
+/// Colour at a surface point `p` with normal `n` (see the module's notes), each ray read as
+/// `reach` says; `seen`: the training cameras and which of them see the point.
+pub fn surface_colour(
+    field: &Field,
+    p: Vec3,
+    n: Vec3,
+    reach: RayReach,
+    seen: &SeenFrom,
+) -> [f32; 3] {
+    let slack = reach.slack;
     // (direction, cosine, whether the camera's view of the point is not blocked)
     let mut facing: Vec<(Vec3, f32, bool)> = seen
         .centres
@@ -144,7 +169,11 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFr
     let mut acc = [0f32; 3];
     let mut csum = 0f32;
     for (dir, cos, _) in &facing {
-        let Some(c) = along_ray(field, p, *dir, slack / cos.max(0.25)) else {
+        let slanted = RayReach {
+            slack: slack / cos.max(0.25),
+            ..reach
+        };
+        let Some(c) = along_ray(field, p, *dir, slanted) else {
             continue;
         };
         (0..3).for_each(|k| acc[k] += cos * c[k]);
@@ -155,7 +184,7 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFr
     }
     // No camera: along the inward normal, an SH field's mean over directions (a network's view
     // head-on).
-    let samples = samples_along(field, p, -n, slack);
+    let samples = samples_along(field, p, -n, reach);
     let shading = ray_shading(field, -n, field.net.is_none());
     composite(&samples, |q| colour_at(field, q, -n, &shading))
         .unwrap_or_else(|| colour_at(field, p, -n, &shading))
@@ -163,8 +192,8 @@ pub fn surface_colour(field: &Field, p: Vec3, n: Vec3, slack: f32, seen: &SeenFr
 
 /// The colour composited along the ray of direction `dir` through `p` ([`samples_along`]);
 /// None where that ray meets too little.
-fn along_ray(field: &Field, p: Vec3, dir: Vec3, slack: f32) -> Option<[f32; 3]> {
-    let samples = samples_along(field, p, dir, slack);
+fn along_ray(field: &Field, p: Vec3, dir: Vec3, reach: RayReach) -> Option<[f32; 3]> {
+    let samples = samples_along(field, p, dir, reach);
     if samples.iter().map(|s| s.1).sum::<f32>() <= 0.2 {
         return None;
     }

@@ -7,7 +7,7 @@
 //! field interpolates raw values before activating them (DVGO's post-activation), so cutting the
 //! raw trilinear field at one level is exactly the surface the renderer sees.
 
-use super::colour::{raw_at, surface_colour, view_centres};
+use super::colour::{raw_at, surface_colour, view_centres, RayReach};
 use super::fill::{fill_cavities, GridUp, EMPTY, SEAL_VOXELS};
 use super::frame::{GltfFrame, Placement};
 use super::io::MeshFormat;
@@ -202,7 +202,7 @@ fn colour_vertices(field: &Field, mesh: &mut Mesh, opts: &FieldMeshOptions) {
         .zip(&mesh.normals)
         .map(|(p, n)| {
             let (p, n) = (Vec3::from_array(*p), Vec3::from_array(*n));
-            let c = surface_colour(field, p, n, 0.0, &seen);
+            let c = surface_colour(field, p, n, RayReach::ON_SURFACE, &seen);
             recolour.map_or(c, |r| r.apply(c))
         })
         .collect();
