@@ -14,7 +14,7 @@ use std::path::PathBuf;
 #[derive(Args, Debug)]
 pub struct MeshExportArgs {
     /// Triangle budget: the mesh is decimated to at most this many triangles (default: a fifth
-    /// of the marching-cubes mesh, at most 50 000).
+    /// of the marching-cubes mesh, at most 100 000).
     #[arg(long, conflicts_with = "full")]
     pub triangles: Option<usize>,
     /// Keep the full marching-cubes mesh (no decimation).
@@ -53,7 +53,7 @@ impl MeshExportArgs {
         let defaults = ExportOptions::default();
         Ok(ExportOptions {
             // A budget asked for in triangles is that budget; none: the default's (a fifth of
-            // the full mesh, at most 50 000).
+            // the full mesh, at most 100 000).
             max_triangles: match self.full {
                 true => None,
                 false => self.triangles.or(defaults.max_triangles),
