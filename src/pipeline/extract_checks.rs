@@ -9,7 +9,7 @@ use crate::fit::TrainReport;
 use crate::mesh::mesh_checks::check_mesh;
 use crate::mesh::Mesh;
 use crate::scene::Scene;
-use crate::segment::{ObjectSegmentation, ViewStatus};
+use crate::segment::{ObjectSegmentation, ViewResult, ViewStatus};
 use crate::util::Warning;
 use std::sync::Arc;
 
@@ -41,7 +41,7 @@ pub fn check_views(obj: &ObjectSegmentation, most: usize) -> Vec<String> {
 /// partly hidden object is not what the field renders there.
 pub const WHOLE_COVERAGE: f64 = 0.9;
 
-fn seen_whole(v: &crate::segment::ViewResult) -> bool {
+fn seen_whole(v: &ViewResult) -> bool {
     v.status == ViewStatus::Ok
         && v.flags.is_empty()
         && v.expected_coverage.is_some_and(|c| c >= WHOLE_COVERAGE)
@@ -66,13 +66,7 @@ pub fn field_warnings(
     train: &TrainReport,
     planned_steps: usize,
 ) -> Result<(HeldOutCheck, Vec<Warning>)> {
-    let keep: Vec<usize> = scene
-        .images
-        .iter()
-        .enumerate()
-        .filter(|(_, im)| held_out.contains(&im.name))
-        .map(|(i, _)| i)
-        .collect();
+    let keep = check_indices(&obj.views, held_out);
     let mut held = if keep.is_empty() {
         HeldOutCheck::default()
     } else {
@@ -92,6 +86,28 @@ pub fn field_warnings(
     Ok((held, warnings))
 }
 
+/// The held-out views the field is checked on: those that show the object whole (as the views
+/// [`check_views`] picks and the training views compared with), where any do; else all of them.
+/// A user's hold-out rule (`--hold-out-every`) also keeps back views where the object is partly
+/// hidden, and there the field rightly draws what the mask leaves out (`objnerf demo`'s mug in
+/// view_003, a sixth of it behind another object: 15.7 dB against 21.8-23.9 in the other
+/// held-out views, a false `heldout_gap`).
+fn check_indices(views: &[ViewResult], held_out: &[String]) -> Vec<usize> {
+    let held: Vec<usize> = (0..views.len())
+        .filter(|&i| held_out.contains(&views[i].view))
+        .collect();
+    let whole: Vec<usize> = held
+        .iter()
+        .copied()
+        .filter(|&i| seen_whole(&views[i]))
+        .collect();
+    if whole.is_empty() {
+        held
+    } else {
+        whole
+    }
+}
+
 /// [`measure_held_out`] on the scene's views `keep` with the segmentation's masks.
 fn measure(
     scene: &Scene,
@@ -109,4 +125,42 @@ fn measure(
 /// The mesh checks of `object`'s mesh cut from `field`.
 pub fn mesh_warnings(object: &str, mesh: &Mesh, field: &Field) -> Vec<Warning> {
     check_mesh(object, mesh, field.box_min, field.box_max, field.voxel)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(name: &str, status: ViewStatus, coverage: f64) -> ViewResult {
+        ViewResult {
+            view: name.into(),
+            status,
+            score: 1.0,
+            expected_iou: None,
+            expected_coverage: Some(coverage),
+            num_prompts: 1,
+            num_projected: 10,
+            order: None,
+            spill: None,
+            shortfall: None,
+            flags: Vec::new(),
+            mask: None,
+            prompts: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn held_out_views_partly_hidden_are_not_checked_while_whole_ones_are() {
+        let views = [
+            view("a", ViewStatus::Ok, 0.95),
+            view("b", ViewStatus::Ok, 0.81), // a sixth hidden: drawn whole, masked in part
+            view("c", ViewStatus::Ok, 0.97),
+            view("d", ViewStatus::Ok, 0.99),
+        ];
+        let held = ["b".to_string(), "c".to_string()];
+        assert_eq!(check_indices(&views, &held), vec![2]);
+        // None of them whole: all are checked rather than none.
+        assert_eq!(check_indices(&views, &held[..1]), vec![1]);
+        assert!(check_indices(&views, &[]).is_empty());
+    }
 }
