@@ -90,6 +90,7 @@ fn main() -> objnerf::Result<()> {
     f.depth_weight = env("SF_FWD_DEPTH_W").unwrap_or(f.depth_weight);
     f.free_space_weight = env("SF_FWD_FREE").unwrap_or(f.free_space_weight);
     f.seed_from_depth = env("SF_FWD_SEED").unwrap_or(f.seed_from_depth);
+    f.rate_scale_with_depth = env("SF_RATE_SCALE_DEPTH").unwrap_or(f.rate_scale_with_depth);
     opts.rate_scale_with_depth = env("SF_RATE_SCALE_DEPTH").unwrap_or(opts.rate_scale_with_depth);
     // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").
     if let Ok(st) = std::env::var("SF_STAGES") {

@@ -244,12 +244,12 @@ pub struct SceneFitOptions {
     /// A forward-facing capture's own settings (NDC space).
     pub forward: ForwardSettings,
     /// The grid's learning rates (density and colour) are `train`'s times this where the
-    /// training views carry depth targets. Depth holds the geometry while the faster density
-    /// carves the fog, so rays end sooner: twice the rates, 300 s, held out fern / flower /
-    /// horns +0.21 / +0.13 / +0.35 dB (fern's within its run-to-run spread), the demo ring
-    /// +0.90, fox at 3 000 steps +0.40, at 1.3-2x the rays a second. Where nothing holds it the
+    /// training views carry depth targets (a forward capture's: [`ForwardSettings`]). Depth
+    /// holds the geometry while the faster density carves the fog, so rays end sooner: twice
+    /// the rates, 300 s, the demo ring held out +0.90 dB, fox at 3 000 steps +0.40, at
+    /// 1.3-2x the rays a second; removal and the user's path over their lines. Where nothing holds it the
     /// air carves before the photos agree where the surfaces are: the forward demo with no
-    /// depth held out 17.69 dB at twice the rates against 21.45
+    /// depth held out 17.69 dB at twice the rates against 20.24
     /// (examples/results/scene_field.md, "Twice the grid's rates fail a field with no depth").
     pub rate_scale_with_depth: f32,
 }
@@ -275,6 +275,12 @@ pub struct ForwardSettings {
     pub depth_weight: f32,
     pub free_space_weight: f32,
     pub seed_from_depth: bool,
+    /// [`SceneFitOptions::rate_scale_with_depth`] for a forward capture: 1, the object
+    /// field's rates. Twice them paid in 300 s on a slower machine (fern / flower / horns
+    /// +0.21 / +0.13 / +0.35 dB) but cost flower 0.44 dB in the issue's 600 s (25.66 -> 25.22
+    /// held out; examples/results/scene_field.md, "Twice the rates where depth holds the
+    /// geometry").
+    pub rate_scale_with_depth: f32,
 }
 
 impl Default for ForwardSettings {
@@ -284,6 +290,7 @@ impl Default for ForwardSettings {
             depth_weight: 0.05,
             free_space_weight: 1.0,
             seed_from_depth: true,
+            rate_scale_with_depth: 1.0,
         }
     }
 }
@@ -419,8 +426,13 @@ impl SceneFit {
             cfg.free_space_weight = opts.forward.free_space_weight;
         }
         if depth_targets > 0 && cfg.depth_weight > 0.0 {
-            cfg.lr_density *= opts.rate_scale_with_depth;
-            cfg.lr_color *= opts.rate_scale_with_depth;
+            let scale = if forward {
+                opts.forward.rate_scale_with_depth
+            } else {
+                opts.rate_scale_with_depth
+            };
+            cfg.lr_density *= scale;
+            cfg.lr_color *= scale;
         }
         let mut seeds: Vec<(glam::Vec3, [u8; 3])> = scene
             .points
