@@ -246,10 +246,10 @@ pub struct SceneFitOptions {
     /// The grid's learning rates (density and colour) are `train`'s times this where the
     /// training views carry depth targets (a forward capture's: [`ForwardSettings`]). Depth
     /// holds the geometry while the faster density carves the fog, so rays end sooner: twice
-    /// the rates, 300 s, the demo ring held out +0.90 dB, fox at 3 000 steps +0.40, at
-    /// 1.3-2x the rays a second; removal and the user's path over their lines. Where nothing holds it the
-    /// air carves before the photos agree where the surfaces are: the forward demo with no
-    /// depth held out 17.69 dB at twice the rates against 20.24
+    /// the rates, 300 s, the demo ring held out +0.90 dB, fox at 3 000 steps +0.40, at 1.3-2x
+    /// the rays a second; removal and the user's path over their lines. Where nothing holds
+    /// it the air carves before the photos agree where the surfaces are: the forward demo with
+    /// no depth held out 17.69 dB at twice the rates against 20.24
     /// (examples/results/scene_field.md, "Twice the grid's rates fail a field with no depth").
     pub rate_scale_with_depth: f32,
 }
