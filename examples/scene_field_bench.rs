@@ -147,6 +147,7 @@ fn main() -> objnerf::Result<()> {
         "memory_mb": fitted.report.memory_bytes >> 20,
         "peak_rss_mib": objnerf::util::mem::peak_rss_mib(),
         "space": fitted.report.setup.as_ref().map(|s| s.space.name()),
+        "phase_seconds": fitted.report.run.phases,
     });
     println!("{out}");
     Ok(())

@@ -9,7 +9,8 @@
 //!     [--budgets 150,300,600] [--out examples/results] [--chart-only]
 //!
 //! RULE is a `--hold-out` rule (`llff`, N, `none`; default `llff`); S,S,... the capture's own
-//! budgets (default: `--budgets`). LLFF scenes named as the
+//! budgets (default: `--budgets`). The last panel splits each capture's longest run's time into
+//! the trainer's parts (`RunSummary::phases`). LLFF scenes named as the
 //! dataset names them (fern, flower, fortress, horns, leaves, orchids, room, trex) are charted
 //! with NeRF's and Plenoxels' published held-out PSNR (504x378 is half the resolution they
 //! report at; see examples/results/scene_field.md). `--chart-only` redraws the chart from the
@@ -18,7 +19,7 @@
 #[path = "support/bench.rs"]
 mod bench;
 
-use objnerf::util::chart::{palette, svg, ChartResult, Layer, Panel, SeriesLabelPosition};
+use objnerf::util::chart::{palette, svg, ChartResult, Layer, Mark, Panel, SeriesLabelPosition};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -125,6 +126,8 @@ fn main() {
                 "space": train["setup"]["space"]["kind"],
                 "train_seconds": train["run"]["seconds"], "steps": train["run"]["steps"],
                 "rays_per_second": train["run"]["rays_per_second"],
+                "samples_per_ray": train["run"]["samples_per_ray"],
+                "phase_seconds": train["run"]["phases"],
                 "occupied_cells": train["occupied_cells"], "memory_bytes": train["memory_bytes"],
                 "peak_rss_mib": train["peak_rss_mib"],
                 "fit_psnr": train["scene_fit"]["psnr"],
@@ -155,7 +158,8 @@ fn main() {
 }
 
 /// One panel per capture: held-out PSNR against training time, with the published figures as
-/// levels; a last panel of rays per second against time for every capture.
+/// levels; a panel of rays per second against time for every capture, and one of where each
+/// capture's longest run spent its time.
 fn chart(result: &Value, path: &Path) -> ChartResult<()> {
     let runs = result["runs"].as_array().cloned().unwrap_or_default();
     let mut names: Vec<String> = Vec::new();
@@ -214,8 +218,69 @@ fn chart(result: &Value, path: &Path) -> ChartResult<()> {
     for p in &mut panels {
         p.legend = SeriesLabelPosition::LowerLeft;
     }
+    if let Some(p) = time_panel(&runs, &names) {
+        panels.push(p);
+    }
     let cols = 2;
     let rows = panels.len().div_ceil(cols);
     std::fs::write(path, svg((1100, 400 * rows as u32), rows, &panels)?)?;
     Ok(())
+}
+
+/// Where each capture's longest run spent its training time, in milliseconds a thousand rays
+/// (what the rays-per-second line reads), stacked by part: marching the rays forward and back,
+/// the gradient's scatter into the grid (with Adam), TV, pruning and averaging, and the rest
+/// (growing the grid between stages, the loop). None for runs recorded before the parts were.
+fn time_panel(runs: &[Value], names: &[String]) -> Option<Panel> {
+    const PARTS: [(&str, &str); 4] = [
+        ("rays", "rays forward + backward"),
+        ("scatter", "gradient scatter + Adam"),
+        ("tv", "TV"),
+        ("upkeep", "pruning, averaging"),
+    ];
+    let mut stacks: Vec<Vec<(f64, f64)>> = vec![Vec::new(); PARTS.len() + 1];
+    for (i, name) in names.iter().enumerate() {
+        let Some(r) = runs
+            .iter()
+            .filter(|r| r["capture"].as_str() == Some(name.as_str()))
+            .filter(|r| r["phase_seconds"].is_object())
+            .max_by(|a, b| {
+                let t = |r: &Value| r["train_seconds"].as_f64().unwrap_or(0.0);
+                t(a).total_cmp(&t(b))
+            })
+        else {
+            continue;
+        };
+        let seconds = r["train_seconds"].as_f64()?;
+        let rays = r["rays_per_second"].as_f64()? * seconds;
+        let ms = 1e6 / rays.max(1.0);
+        let mut total = 0.0;
+        for (k, (key, _)) in PARTS.iter().enumerate() {
+            total += r["phase_seconds"][key].as_f64().unwrap_or(0.0) * ms;
+            stacks[k].push((i as f64 + 1.0, total));
+        }
+        stacks[PARTS.len()].push((i as f64 + 1.0, seconds * ms));
+    }
+    if stacks[0].is_empty() {
+        return None;
+    }
+    let names_of_parts: Vec<&str> = PARTS.iter().map(|p| p.1).chain(["the rest"]).collect();
+    // The tallest (the whole) first, so each shorter part's bar is drawn over it.
+    let layers: Vec<Layer> = (names_of_parts.into_iter().zip(stacks).enumerate().rev())
+        .map(|(k, (part, pts))| Layer::new(part, palette(k + 10), pts).mark(Mark::Bars(0.6)))
+        .collect();
+    let top = layers[0].points.iter().map(|p| p.1).fold(0.0, f64::max);
+    let order: Vec<String> = (names.iter().enumerate())
+        .map(|(i, n)| format!("{} {n}", i + 1))
+        .collect();
+    let mut panel = Panel::fitted(
+        "where the longest run's time went",
+        &format!("capture ({})", order.join(", ")),
+        "ms a thousand rays",
+        layers,
+    );
+    panel.x = 0.4..names.len() as f64 + 0.6;
+    panel.y = 0.0..top * 1.35;
+    panel.legend = SeriesLabelPosition::UpperRight;
+    Some(panel)
 }

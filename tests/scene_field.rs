@@ -52,7 +52,15 @@ fn a_forward_field_finds_its_depth_from_the_photos_alone() {
         fit.space_choice()
     );
     fit.train(&opts.fit.stop_rule(), &mut |_| {});
-    let field = fit.finish().trainer.field;
+    let fitted = fit.finish();
+    // The report says where the training time went (the captures' chart reads it).
+    let run = &fitted.report.run;
+    let p = run.phases;
+    let parts = p.rays + p.scatter + p.tv + p.upkeep;
+    assert!(p.rays > 0.0 && p.scatter > 0.0, "{run:?}");
+    assert!(parts <= run.seconds, "{parts} s of parts in {} s", run.seconds);
+    assert!(run.samples_per_ray > 0.0, "{run:?}");
+    let field = fitted.trainer.field;
     let views: Vec<_> = load_views(&scene, &MaskSource::Opaque, 1)
         .unwrap()
         .into_iter()

@@ -616,10 +616,52 @@ pub struct RunSummary {
     pub steps: usize,
     pub seconds: f64,
     pub rays_per_second: f64,
+    /// Samples a ray kept, the mean over the run's steps.
+    pub samples_per_ray: f64,
+    /// Where the seconds went.
+    pub phases: PhaseSeconds,
     pub final_psnr: f32,
     pub stopped_by: String,
     /// Snapshots of the parameters whose mean the run ended on (0: it ended on the last ones).
     pub averaged: u32,
+}
+
+/// Where a run's seconds went, by the trainer's clocks ([`Trainer::phase_secs`]). The rest of
+/// [`RunSummary::seconds`] is growing the grid between stages and the loop around the steps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct PhaseSeconds {
+    /// Rays marched forward and back, with the steps of the network and of the views'
+    /// colour corrections.
+    pub rays: f64,
+    /// The gradient scattered into the grid, with Adam on its touched vertices when TV is off.
+    pub scatter: f64,
+    /// TV and Adam, when TV is on.
+    pub tv: f64,
+    /// Pruning the occupancy and the running mean of the parameters.
+    pub upkeep: f64,
+}
+
+impl PhaseSeconds {
+    /// The seconds between two readings of [`Trainer::phase_secs`].
+    fn between(before: [f64; 4], after: [f64; 4]) -> PhaseSeconds {
+        let d = |i: usize| after[i] - before[i];
+        PhaseSeconds {
+            rays: d(0),
+            scatter: d(1),
+            tv: d(2),
+            upkeep: d(3),
+        }
+    }
+
+    /// Both runs' seconds, part by part.
+    pub fn plus(self, o: PhaseSeconds) -> PhaseSeconds {
+        PhaseSeconds {
+            rays: self.rays + o.rays,
+            scatter: self.scatter + o.scatter,
+            tv: self.tv + o.tv,
+            upkeep: self.upkeep + o.upkeep,
+        }
+    }
 }
 
 /// Train until `trainer.cfg.steps`, the time budget or a plateau; `progress` sees every step
@@ -633,6 +675,8 @@ pub fn run(
 ) -> RunSummary {
     let start = Instant::now();
     let first_step = trainer.step;
+    let phases_before = trainer.phase_secs;
+    let mut samples_per_ray_sum = 0.0f64;
     let mut stopped_by = "steps".to_string();
     let mut window_sum = 0.0f64;
     let mut last_window: Option<f64> = None;
@@ -650,6 +694,7 @@ pub fn run(
         last.rays_per_second =
             ((trainer.step - first_step) * trainer.cfg.batch) as f64 / secs.max(1e-9);
         progress(&last);
+        samples_per_ray_sum += last.samples_per_ray as f64;
         window_sum += last.psnr as f64;
         if trainer.step % w == 0 {
             let mean = window_sum / w as f64;
@@ -687,6 +732,8 @@ pub fn run(
         seconds,
         rays_per_second: ((trainer.step - first_step) * trainer.cfg.batch) as f64
             / seconds.max(1e-9),
+        samples_per_ray: samples_per_ray_sum / (trainer.step - first_step).max(1) as f64,
+        phases: PhaseSeconds::between(phases_before, trainer.phase_secs),
         final_psnr: last.psnr,
         stopped_by,
         averaged,

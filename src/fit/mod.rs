@@ -504,8 +504,22 @@ impl SceneFit {
     /// The trained field and its report (the phases' runs summed).
     pub fn finish(self) -> Fitted {
         let last = self.runs.last().cloned().unwrap_or_default();
+        // Rates over every phase, each phase weighed by the rays it trained.
+        let rays: Vec<f64> = self
+            .runs
+            .iter()
+            .map(|r| r.rays_per_second * r.seconds)
+            .collect();
+        let total_rays: f64 = rays.iter().sum();
+        let seconds: f64 = self.runs.iter().map(|r| r.seconds).sum();
         let summary = RunSummary {
-            seconds: self.runs.iter().map(|r| r.seconds).sum(),
+            seconds,
+            rays_per_second: total_rays / seconds.max(1e-9),
+            samples_per_ray: (self.runs.iter().zip(&rays))
+                .map(|(r, n)| r.samples_per_ray * n)
+                .sum::<f64>()
+                / total_rays.max(1e-9),
+            phases: (self.runs.iter()).fold(Default::default(), |a, r| a.plus(r.phases)),
             ..last
         };
         let t = self.trainer;

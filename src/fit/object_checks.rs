@@ -212,7 +212,7 @@ mod tests {
                 rays_per_second: 1.0,
                 final_psnr: psnr,
                 stopped_by: stopped_by.into(),
-                averaged: 0,
+                ..Default::default()
             },
             vertices: 0,
             dims: [1; 3],

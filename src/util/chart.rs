@@ -19,6 +19,9 @@ pub enum Mark {
     Points(u32),
     /// A thin dashed line (reference levels: floors, medians).
     Dashed,
+    /// Filled bars from 0 to each point, this wide in x. Stacks are drawn tallest first, each
+    /// layer holding its running total.
+    Bars(f64),
 }
 
 /// One named series of a panel.
@@ -147,12 +150,19 @@ fn draw_panel(
                 c.draw_series(pts.iter().map(|&q| Circle::new(q, r, col.filled())))?
             }
             Mark::Dashed => c.draw_series(DashedLineSeries::new(pts, 6, 4, col.stroke_width(1)))?,
+            Mark::Bars(w) => c.draw_series(pts.iter().map(|&(x, y)| {
+                let base = 0f64.clamp(p.y.start, p.y.end);
+                Rectangle::new([(x - w / 2.0, base), (x + w / 2.0, y)], col.filled())
+            }))?,
         };
         if let Some(name) = &layer.name {
             match layer.mark {
                 Mark::Points(r) => drawn
                     .label(name.as_str())
                     .legend(move |(x, y)| Circle::new((x + 8, y), r.min(5), col.filled())),
+                Mark::Bars(_) => drawn.label(name.as_str()).legend(move |(x, y)| {
+                    Rectangle::new([(x + 2, y - 5), (x + 14, y + 5)], col.filled())
+                }),
                 _ => drawn.label(name.as_str()).legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 16, y)], col.stroke_width(2))
                 }),
