@@ -270,12 +270,14 @@ pub struct SceneFitOptions {
 #[derive(Clone, Debug)]
 pub struct ForwardSettings {
     pub distortion_weight: f32,
-    /// Stereo depth weighed 10x a ring's, the free-space loss in front of the same targets, and
+    /// Stereo depth weighed 3x a ring's, the free-space loss in front of the same targets, and
     /// surfaces started at the targets as well as at the sparse points. 50x (0.05) held the
-    /// field against the distortion loss's pull; with that loss off, 0.01 scores higher on every
-    /// LLFF capture in 600 s (fern / flower / horns 23.64 / 25.58 / 24.85 -> 23.92 / 25.69 /
-    /// 25.23 dB held out) and fern's rays end sooner (28.6 k -> 46.5 k rays/s)
-    /// (examples/results/scene_field.md, "the forward depth weight", twentieth session).
+    /// field against the distortion loss's pull; with that loss off, lighter scores higher on
+    /// every LLFF capture in 600 s: 0.01 (fern / flower / horns 23.64 / 25.58 / 24.85 -> 23.92
+    /// / 25.69 / 25.23 dB held out, twentieth session), then 0.003 (23.88 / 25.71 / 25.31 ->
+    /// 23.99 / 25.74 / 25.55, with 27 / 20 / 3% more rays a second: the wrong parts of
+    /// stereo's targets hold less fog), examples/results/scene_field.md, "the forward depth
+    /// weight" (twentieth and twenty-first sessions).
     pub depth_weight: f32,
     pub free_space_weight: f32,
     pub seed_from_depth: bool,
@@ -291,7 +293,7 @@ impl Default for ForwardSettings {
     fn default() -> Self {
         ForwardSettings {
             distortion_weight: 0.0,
-            depth_weight: 0.01,
+            depth_weight: 0.003,
             free_space_weight: 1.0,
             seed_from_depth: true,
             rate_scale_with_depth: 1.0,
