@@ -58,7 +58,11 @@ fn a_forward_field_finds_its_depth_from_the_photos_alone() {
     let p = run.phases;
     let parts = p.rays + p.scatter + p.tv + p.upkeep;
     assert!(p.rays > 0.0 && p.scatter > 0.0, "{run:?}");
-    assert!(parts <= run.seconds, "{parts} s of parts in {} s", run.seconds);
+    assert!(
+        parts <= run.seconds,
+        "{parts} s of parts in {} s",
+        run.seconds
+    );
     assert!(run.samples_per_ray > 0.0, "{run:?}");
     let field = fitted.trainer.field;
     let views: Vec<_> = load_views(&scene, &MaskSource::Opaque, 1)
