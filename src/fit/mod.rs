@@ -276,8 +276,9 @@ pub struct ForwardSettings {
     /// every LLFF capture in 600 s: 0.01 (fern / flower / horns 23.64 / 25.58 / 24.85 -> 23.92
     /// / 25.69 / 25.23 dB held out, twentieth session), then 0.003 (23.88 / 25.71 / 25.31 ->
     /// 23.99 / 25.74 / 25.55, with 27 / 20 / 3% more rays a second: the wrong parts of
-    /// stereo's targets hold less fog), examples/results/scene_field.md, "the forward depth
-    /// weight" (twentieth and twenty-first sessions).
+    /// stereo's targets hold less fog), then 0.001 (24.05 / 25.79 / 25.76, twenty-second),
+    /// examples/results/scene_field.md, "the forward depth weight" (twentieth to
+    /// twenty-second sessions).
     pub depth_weight: f32,
     pub free_space_weight: f32,
     pub seed_from_depth: bool,
@@ -293,7 +294,7 @@ impl Default for ForwardSettings {
     fn default() -> Self {
         ForwardSettings {
             distortion_weight: 0.0,
-            depth_weight: 0.003,
+            depth_weight: 0.001,
             free_space_weight: 1.0,
             seed_from_depth: true,
             rate_scale_with_depth: 1.0,
