@@ -270,7 +270,7 @@ pub struct SceneFitOptions {
 #[derive(Clone, Debug)]
 pub struct ForwardSettings {
     pub distortion_weight: f32,
-    /// Stereo depth weighed 3x a ring's, the free-space loss in front of the same targets, and
+    /// Stereo depth weighed as a ring's, the free-space loss in front of the same targets, and
     /// surfaces started at the targets as well as at the sparse points. 50x (0.05) held the
     /// field against the distortion loss's pull; with that loss off, lighter scores higher on
     /// every LLFF capture in 600 s: 0.01 (fern / flower / horns 23.64 / 25.58 / 24.85 -> 23.92
