@@ -60,7 +60,7 @@ pub struct SetupConfig {
     /// A scene field's colour network's hidden units (one layer), DVGO's LLFF width. 64
     /// against the object field's 32 on the LLFF captures in 600 s: fern / flower / horns
     /// 24.05 / 25.79 / 25.76 -> 24.15 / 25.91 / 25.82 dB held out, at 13-23% fewer rays a second
-    /// (examples/results/scene_field.md, "A wider network for forward captures").
+    /// (examples/results/scene_field.md, twenty-second session, "A wider colour network").
     pub scene_net_hidden: usize,
     /// An object field trained on fewer views keeps its schedule when the memory budget
     /// coarsens the first stage ([`TrainConfig::stages_when_capped`] is not taken): a finer
