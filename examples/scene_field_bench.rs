@@ -3,7 +3,7 @@
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
 //! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W (a ring's or
-//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_FREE, SF_FWD_SEED (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
+//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_DEPTH_C, SF_FWD_FREE, SF_FWD_SEED (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
 //! following the time, as `objnerf train --time-budget` does).
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
@@ -91,6 +91,7 @@ fn main() -> objnerf::Result<()> {
     let f = &mut opts.forward;
     f.distortion_weight = env("SF_FWD_DIST").unwrap_or(f.distortion_weight);
     f.depth_weight = env("SF_FWD_DEPTH_W").unwrap_or(f.depth_weight);
+    f.depth_robust_voxels = env("SF_FWD_DEPTH_C").unwrap_or(f.depth_robust_voxels);
     f.free_space_weight = env("SF_FWD_FREE").unwrap_or(f.free_space_weight);
     f.seed_from_depth = env("SF_FWD_SEED").unwrap_or(f.seed_from_depth);
     f.rate_scale_with_depth = env("SF_RATE_SCALE_DEPTH").unwrap_or(f.rate_scale_with_depth);

@@ -280,6 +280,8 @@ pub struct ForwardSettings {
     /// examples/results/scene_field.md, "the forward depth weight" (twentieth to
     /// twenty-second sessions).
     pub depth_weight: f32,
+    /// [`TrainConfig::depth_robust_voxels`] for a forward capture.
+    pub depth_robust_voxels: f32,
     pub free_space_weight: f32,
     pub seed_from_depth: bool,
     /// [`SceneFitOptions::rate_scale_with_depth`] for a forward capture: 1, the object
@@ -295,6 +297,7 @@ impl Default for ForwardSettings {
         ForwardSettings {
             distortion_weight: 0.0,
             depth_weight: 0.001,
+            depth_robust_voxels: 0.0,
             free_space_weight: 1.0,
             seed_from_depth: true,
             rate_scale_with_depth: 1.0,
@@ -430,6 +433,7 @@ impl SceneFit {
         if forward {
             cfg.distortion_weight = opts.forward.distortion_weight;
             cfg.depth_weight = opts.forward.depth_weight;
+            cfg.depth_robust_voxels = opts.forward.depth_robust_voxels;
             cfg.free_space_weight = opts.forward.free_space_weight;
         }
         if depth_targets > 0 && cfg.depth_weight > 0.0 {

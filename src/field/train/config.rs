@@ -53,6 +53,11 @@ pub struct TrainConfig {
     /// and how many rays with a depth target are added to each batch.
     pub depth_weight: f32,
     pub depth_batch: usize,
+    /// Past about this many finest voxels a depth error pulls less the larger it is (Cauchy's
+    /// c^2 ln(1 + (e/c)^2), the square below): a stereo target far off, as on a wall with no
+    /// texture, is then outvoted by the photos, while one near the surface still holds it
+    /// (0: the plain square).
+    pub depth_robust_voxels: f32,
     /// Rays drawn a step from [`RaySet::focus`] when it holds any.
     ///
     /// [`RaySet::focus`]: crate::field::rays::RaySet::focus
@@ -153,6 +158,7 @@ impl Default for TrainConfig {
             alpha_weight: 0.1,
             depth_weight: 0.001,
             depth_batch: 1024,
+            depth_robust_voxels: 0.0,
             focus_batch: 256,
             distortion_weight: 0.0,
             sparsity_weight: 0.0,

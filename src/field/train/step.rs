@@ -208,10 +208,11 @@ impl StepContext<'_> {
                 let inv_voxel = per_world / self.field.config.base_voxel;
                 let dn = out.depth / out.alpha;
                 let ed = (dn - dt) * inv_voxel;
-                let g = 2.0 * cfg.depth_weight * ed * inv_voxel * inv_b;
+                let (penalty, slope) = depth_penalty(ed, cfg.depth_robust_voxels);
+                let g = cfg.depth_weight * slope * inv_voxel * inv_b;
                 g_depth = g / out.alpha;
                 g_alpha -= g * dn / out.alpha;
-                loss += (cfg.depth_weight * ed * ed) as f64;
+                loss += (cfg.depth_weight * penalty) as f64;
             }
         }
         RayLoss {
@@ -222,6 +223,16 @@ impl StepContext<'_> {
             g_depth,
         }
     }
+}
+
+/// The depth loss of an error of `e` finest voxels and its derivative: `e^2`, or with a scale
+/// `c > 0` Cauchy's `c^2 ln(1 + (e/c)^2)`, the same near 0 and whose pull is at most `c`.
+fn depth_penalty(e: f32, c: f32) -> (f32, f32) {
+    if c <= 0.0 {
+        return (e * e, 2.0 * e);
+    }
+    let r = 1.0 + (e / c) * (e / c);
+    (c * c * r.ln(), 2.0 * e / r)
 }
 
 /// `d` turned by a random angle of about `sigma` radians (each component of the turn drawn
@@ -237,6 +248,32 @@ fn jittered(d: glam::Vec3, sigma: f32, r: &mut Rng) -> glam::Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_robust_depth_penalty_is_the_square_near_zero_and_caps_its_pull() {
+        for e in [-30.0f32, -3.0, -0.5, 0.0, 0.2, 2.0, 7.0, 100.0] {
+            let (sq, dsq) = depth_penalty(e, 0.0);
+            assert_eq!((sq, dsq), (e * e, 2.0 * e));
+            let (p, d) = depth_penalty(e, 3.0);
+            // The derivative is the penalty's slope.
+            let h = 1e-2;
+            let fd = (depth_penalty(e + h, 3.0).0 - depth_penalty(e - h, 3.0).0) / (2.0 * h);
+            assert!(
+                (d - fd).abs() < 1e-2 * (1.0 + d.abs()),
+                "e {e}: {d} vs {fd}"
+            );
+            assert!(p <= sq + 1e-6 && d.abs() <= 3.0 + 1e-6, "e {e}: {p} {d}");
+        }
+        // A tenth of the scale off: within 1% of the square.
+        let (p, _) = depth_penalty(0.3, 3.0);
+        assert!((p - 0.09).abs() < 0.01 * 0.09, "{p}");
+        // Far off, the pull falls: ten scales off it is a fifth of its most.
+        assert!(
+            depth_penalty(30.0, 3.0).1 < 0.6,
+            "{:?}",
+            depth_penalty(30.0, 3.0)
+        );
+    }
 
     #[test]
     fn jittered_directions_turn_by_about_sigma() {
