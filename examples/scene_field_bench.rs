@@ -2,7 +2,7 @@
 //! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
-//! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W (a ring's or
+//! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W, SF_DEPTH_C (a ring's or
 //! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_DEPTH_C, SF_FWD_FREE, SF_FWD_SEED (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
 //! following the time, as `objnerf train --time-budget` does).
 //!
@@ -73,6 +73,7 @@ fn main() -> objnerf::Result<()> {
             prune_alpha: env("SF_PRUNE_ALPHA").unwrap_or(d.train.prune_alpha),
             free_space_weight: env("SF_FREE").unwrap_or(d.train.free_space_weight),
             depth_weight: env("SF_DEPTH_W").unwrap_or(d.train.depth_weight),
+            depth_robust_voxels: env("SF_DEPTH_C").unwrap_or(d.train.depth_robust_voxels),
             tv_density: env("SF_TV_D").unwrap_or(d.train.tv_density),
             tv_color: env("SF_TV_C").unwrap_or(d.train.tv_color),
             batch: env("SF_BATCH").unwrap_or(d.train.batch),
