@@ -280,7 +280,8 @@ pub struct ForwardSettings {
     /// examples/results/scene_field.md, "the forward depth weight" (twentieth to
     /// twenty-second sessions). With the Cauchy penalty below, 0.0003: 24.54 / 26.03 / 26.80
     /// (SSIM 0.804 / 0.862 / 0.891) -> 24.74 / 26.28 / 27.29 (0.804 / 0.867 / 0.898) held out
-    /// in 600 s (flower's pair measured the same day; "A depth loss that gives way", 23rd-24th).
+    /// in 600 s (each pair measured the same day; scene_field.md, "A depth loss that gives way"
+    /// and "The lighter forward depth weight kept").
     pub depth_weight: f32,
     /// [`TrainConfig::depth_robust_voxels`] for a forward capture: 3 (the free-space loss's
     /// margin, "a voxel or two off"), so a stereo target far off is outvoted by the photos.
