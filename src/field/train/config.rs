@@ -43,6 +43,11 @@ pub struct TrainConfig {
     /// DVGO's (`total_variation_add_grad`: the same weights mean the same pull; 0: off).
     pub tv_density: f32,
     pub tv_color: f32,
+    /// TV on every this many steps, at this many times its weight (the same pull in
+    /// expectation): the pass over every touched vertex's neighbours cost half a run's steps
+    /// on fern, and the steps between keep the optimiser's pass fused with the scatter (1:
+    /// every step, as DVGO).
+    pub tv_every: usize,
     /// Weight of the squared alpha error (the colour loss on a random background already
     /// supervises alpha; this sharpens the silhouette).
     pub alpha_weight: f32,
@@ -155,6 +160,7 @@ impl Default for TrainConfig {
             beta2: 0.99,
             tv_density: 0.0,
             tv_color: 0.0,
+            tv_every: 1,
             alpha_weight: 0.1,
             depth_weight: 0.001,
             depth_batch: 1024,

@@ -483,7 +483,7 @@ impl Trainer {
         // Without TV, each slab runs Adam on its vertices right after summing their gradients,
         // while those lines are still in cache (TV reads neighbours across slabs, so it needs
         // every slab's scatter finished first).
-        let fused = self.cfg.tv_density == 0.0 && self.cfg.tv_color == 0.0;
+        let fused = !self.tv_this_step();
         let adam = fused.then(|| self.adam_step());
         // The parameters leave the grid for the pass: the grid's brick index finds corners while
         // each slab writes its own parameters.
@@ -528,54 +528,60 @@ impl Trainer {
         }
     }
 
+    /// Whether this step adds TV (on every `tv_every`-th step, when any TV weight is set).
+    fn tv_this_step(&self) -> bool {
+        let cfg = &self.cfg;
+        (cfg.tv_density > 0.0 || cfg.tv_color > 0.0) && self.step % cfg.tv_every.max(1) == 0
+    }
+
     fn tv_and_adam(&mut self, touched: &[Vec<u32>], bounds: &[usize]) {
         let cfg = &self.cfg;
         let grid = &self.field.grid;
         let dims = grid.dims;
         let ch = grid.channels;
         let params = &grid.data;
-        if cfg.tv_density > 0.0 || cfg.tv_color > 0.0 {
-            // DVGO's TV, so its weights carry over: each neighbour's difference clamped to
-            // [-1, 1], the weight over the batch (the colour loss is a mean) and six neighbours,
-            // times the grid's largest side over 128 (the same smoothing at any resolution).
-            let scale = dims.iter().copied().max().unwrap_or(1) as f32
-                / 128.0
-                / (6.0 * cfg.batch.max(1) as f32);
-            let (w_density, w_colour) = (cfg.tv_density * scale, cfg.tv_color * scale);
-            // Reads parameters only, writes each slab's own gradients: order-independent.
-            split_by(&mut self.grad, bounds, ch)
-                .into_par_iter()
-                .zip(touched.par_iter())
-                .enumerate()
-                .for_each(|(si, (gslab, list))| {
-                    let v0 = bounds[si];
-                    for &v in list {
-                        let v = v as usize;
-                        let coords = grid.vertex_coords(v as u32);
-                        for a in 0..3 {
-                            for dir in [-1isize, 1] {
-                                let c = coords[a] as isize + dir;
-                                if c < 0 || c as usize >= dims[a] {
-                                    continue;
-                                }
-                                let mut nc = coords;
-                                nc[a] = c as usize;
-                                let n = grid.vertex_slot(nc[0], nc[1], nc[2]);
-                                if n == NONE {
-                                    continue;
-                                }
-                                let n = n as usize;
-                                for j in 0..ch {
-                                    let w = if j == 0 { w_density } else { w_colour };
-                                    let diff = params[value_index(v, j, ch)]
-                                        - params[value_index(n, j, ch)];
-                                    gslab[value_index(v - v0, j, ch)] += w * diff.clamp(-1.0, 1.0);
-                                }
+        // DVGO's TV, so its weights carry over: each neighbour's difference clamped to
+        // [-1, 1], the weight over the batch (the colour loss is a mean) and six neighbours,
+        // times the grid's largest side over 128 (the same smoothing at any resolution),
+        // times the period between TV steps.
+        let scale = dims.iter().copied().max().unwrap_or(1) as f32
+            / 128.0
+            / (6.0 * cfg.batch.max(1) as f32)
+            * cfg.tv_every.max(1) as f32;
+        let (w_density, w_colour) = (cfg.tv_density * scale, cfg.tv_color * scale);
+        // Reads parameters only, writes each slab's own gradients: order-independent.
+        split_by(&mut self.grad, bounds, ch)
+            .into_par_iter()
+            .zip(touched.par_iter())
+            .enumerate()
+            .for_each(|(si, (gslab, list))| {
+                let v0 = bounds[si];
+                for &v in list {
+                    let v = v as usize;
+                    let coords = grid.vertex_coords(v as u32);
+                    for a in 0..3 {
+                        for dir in [-1isize, 1] {
+                            let c = coords[a] as isize + dir;
+                            if c < 0 || c as usize >= dims[a] {
+                                continue;
+                            }
+                            let mut nc = coords;
+                            nc[a] = c as usize;
+                            let n = grid.vertex_slot(nc[0], nc[1], nc[2]);
+                            if n == NONE {
+                                continue;
+                            }
+                            let n = n as usize;
+                            for j in 0..ch {
+                                let w = if j == 0 { w_density } else { w_colour };
+                                let diff =
+                                    params[value_index(v, j, ch)] - params[value_index(n, j, ch)];
+                                gslab[value_index(v - v0, j, ch)] += w * diff.clamp(-1.0, 1.0);
                             }
                         }
                     }
-                });
-        }
+                }
+            });
         let step = self.adam_step();
         let ch = self.field.grid.channels;
         split_by(&mut self.field.grid.data, bounds, ch)
