@@ -20,9 +20,11 @@ fn small_cfg(steps: usize) -> TrainConfig {
         steps,
         stages: vec![(0.0, 0.5), (0.5, 1.0)],
         prune_every: 10,
-        // A little TV so the repeatability test covers it (1e-4 already over-smooths).
+        // A little TV so the repeatability test covers it (1e-4 already over-smooths), on
+        // every other step so it covers both of the optimiser's passes (fused, and after TV).
         tv_density: 1e-7,
         tv_color: 1e-8,
+        tv_every: 2,
         ..Default::default()
     }
 }
