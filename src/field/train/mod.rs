@@ -480,7 +480,7 @@ impl Trainer {
         let ch = self.field.grid.channels;
         let stamp_id = self.step as u32 + 1;
         let clock = std::time::Instant::now();
-        // Without TV, each slab runs Adam on its vertices right after summing their gradients,
+        // On a step without TV, each slab runs Adam on its vertices right after summing their gradients,
         // while those lines are still in cache (TV reads neighbours across slabs, so it needs
         // every slab's scatter finished first).
         let fused = !self.tv_this_step();
