@@ -2,7 +2,7 @@
 //! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
-//! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_TV_EVERY (TV on every this many steps, at that many times the weight), SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W, SF_DEPTH_C (a ring's or
+//! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_TV_EVERY (TV on every this many steps, at that many times the weight), SF_TV_UNTIL (the fraction of the schedule after which TV stops; reaches forward captures too), SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W, SF_DEPTH_C (a ring's or
 //! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_DEPTH_C, SF_FWD_FREE, SF_FWD_SEED, SF_FWD_TV_D, SF_FWD_TV_C, SF_FWD_TV_EVERY (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
 //! following the time, as `objnerf train --time-budget` does).
 //!
@@ -77,6 +77,7 @@ fn main() -> objnerf::Result<()> {
             tv_density: env("SF_TV_D").unwrap_or(d.train.tv_density),
             tv_color: env("SF_TV_C").unwrap_or(d.train.tv_color),
             tv_every: env("SF_TV_EVERY").unwrap_or(d.train.tv_every),
+            tv_until: env("SF_TV_UNTIL").unwrap_or(d.train.tv_until),
             batch: env("SF_BATCH").unwrap_or(d.train.batch),
             lr_density: env("SF_LR_D").unwrap_or(d.train.lr_density),
             lr_color: env("SF_LR_C").unwrap_or(d.train.lr_color),

@@ -48,6 +48,9 @@ pub struct TrainConfig {
     /// on fern, and the steps between keep the optimiser's pass fused with the scatter (1:
     /// every step, as DVGO).
     pub tv_every: usize,
+    /// TV stops once this fraction of the schedule has passed (1: the whole run, as DVGO's
+    /// `tv_before`).
+    pub tv_until: f32,
     /// Weight of the squared alpha error (the colour loss on a random background already
     /// supervises alpha; this sharpens the silhouette).
     pub alpha_weight: f32,
@@ -161,6 +164,7 @@ impl Default for TrainConfig {
             tv_density: 0.0,
             tv_color: 0.0,
             tv_every: 1,
+            tv_until: 1.0,
             alpha_weight: 0.1,
             depth_weight: 0.001,
             depth_batch: 1024,

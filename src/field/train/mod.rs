@@ -528,10 +528,13 @@ impl Trainer {
         }
     }
 
-    /// Whether this step adds TV (on every `tv_every`-th step, when any TV weight is set).
+    /// Whether this step adds TV (on every `tv_every`-th step before `tv_until`, when any TV
+    /// weight is set).
     fn tv_this_step(&self) -> bool {
         let cfg = &self.cfg;
-        (cfg.tv_density > 0.0 || cfg.tv_color > 0.0) && self.step % cfg.tv_every.max(1) == 0
+        (cfg.tv_density > 0.0 || cfg.tv_color > 0.0)
+            && self.step % cfg.tv_every.max(1) == 0
+            && self.progress() < cfg.tv_until
     }
 
     fn tv_and_adam(&mut self, touched: &[Vec<u32>], bounds: &[usize]) {
