@@ -2,8 +2,8 @@
 //! (full frame, on the truth), print one JSON line. Settings from the environment for sweeps:
 //! SF_DOWNSCALE, SF_SECONDS, SF_ALPHA_INIT, SF_SH, SF_MEM_MB, SF_FIRST_SHARE (share of the memory
 //! the dense first stage may take), SF_SPACE, SF_STEPS, SF_STAGES, SF_HOLD (llff, N: the views
-//! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_TV_EVERY (TV on every this many steps, at that many times the weight), SF_TV_UNTIL (the fraction of the schedule after which TV stops; reaches forward captures too), SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W, SF_DEPTH_C (a ring's or
-//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_DEPTH_C, SF_FWD_FREE, SF_FWD_SEED, SF_FWD_TV_D, SF_FWD_TV_C, SF_FWD_TV_EVERY (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
+//! held out), SF_NET, SF_SCENE_NET, SF_HIDDEN (a scene colour network's hidden units), SF_VPP, SF_TV_D, SF_TV_C, SF_TV_EVERY (TV on every this many steps, at that many times the weight), SF_TV_UNTIL (the fraction of the schedule after which TV stops), SF_BATCH, SF_LR_D, SF_LR_C (the rates before SF_RATE_SCALE_DEPTH, their factor where depth targets exist), SF_FREE, SF_DEPTH_W, SF_DEPTH_C (a ring's or
+//! unbounded capture's), SF_FWD_DIST, SF_FWD_DEPTH_W, SF_FWD_DEPTH_C, SF_FWD_FREE, SF_FWD_SEED, SF_FWD_TV_D, SF_FWD_TV_C, SF_FWD_TV_EVERY, SF_FWD_TV_UNTIL (a forward capture's), SF_TERM (training's early termination), SF_SAMPLE_STEP (training's sample spacing in voxels), SF_WHOLE (train for the whole SF_SECONDS, the schedule
 //! following the time, as `objnerf train --time-budget` does).
 //!
 //! cargo run --release --example scene_field_bench -- DEMO_SCENE_DIR
@@ -103,6 +103,7 @@ fn main() -> objnerf::Result<()> {
         env("SF_FWD_TV_C").unwrap_or(f.tv.1),
         env("SF_FWD_TV_EVERY").unwrap_or(f.tv.2),
     );
+    f.tv_until = env("SF_FWD_TV_UNTIL").unwrap_or(f.tv_until);
     opts.rate_scale_with_depth = env("SF_RATE_SCALE_DEPTH").unwrap_or(opts.rate_scale_with_depth);
     // The stages are a training setting; sweeps may override them ("0:0.25,0.3:1").
     if let Ok(st) = std::env::var("SF_STAGES") {

@@ -309,6 +309,13 @@ pub struct ForwardSettings {
     /// the same day, at 0.6-0.75x the rays a second (it keeps more air: 8-11 samples a ray
     /// against 5-8) (examples/results/scene_field.md, "TV on every 8th step").
     pub tv: (f32, f32, usize),
+    /// [`TrainConfig::tv_until`] for a forward capture: TV for the first half of the schedule
+    /// (the two coarser stages), none in the finest: the steps its pass took there (half its
+    /// 55-67 s of 600) outweighed its pull. Held out in 600 s, fern / flower / horns 24.92 /
+    /// 26.44 / 27.29 dB (SSIM 0.808 / 0.870 / 0.897) -> 24.94 / 26.55 / 27.47 (0.811 / 0.873 /
+    /// 0.902), 1.10-1.18x the steps, each pair the same hour (examples/results/scene_field.md,
+    /// "TV for the first half").
+    pub tv_until: f32,
 }
 
 impl Default for ForwardSettings {
@@ -321,6 +328,7 @@ impl Default for ForwardSettings {
             seed_from_depth: true,
             rate_scale_with_depth: 1.0,
             tv: (1e-5, 1e-6, 8),
+            tv_until: 0.5,
         }
     }
 }
@@ -456,6 +464,7 @@ impl SceneFit {
             cfg.depth_robust_voxels = opts.forward.depth_robust_voxels;
             cfg.free_space_weight = opts.forward.free_space_weight;
             (cfg.tv_density, cfg.tv_color, cfg.tv_every) = opts.forward.tv;
+            cfg.tv_until = opts.forward.tv_until;
         }
         if depth_targets > 0 && cfg.depth_weight > 0.0 {
             let scale = if forward {
