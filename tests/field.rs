@@ -76,6 +76,38 @@ fn training_is_repeatable_for_a_seed() {
     );
 }
 
+/// `tv_until` ends TV where the schedule says: stopped at the start it is the run without TV,
+/// exactly; stopped halfway it is neither that run nor the one with TV to the end.
+#[test]
+fn tv_stops_at_its_fraction_of_the_schedule() {
+    let Some(views) = lego_views("train", 16, 10) else {
+        return;
+    };
+    let run = |tv_until: f32, weights: bool| {
+        let mut cfg = small_cfg(24);
+        cfg.tv_until = tv_until;
+        cfg.tv_every = 1;
+        if weights {
+            // Strong enough to leave its mark within a few steps.
+            (cfg.tv_density, cfg.tv_color) = (1e-4, 1e-5);
+        } else {
+            (cfg.tv_density, cfg.tv_color) = (0.0, 0.0);
+        }
+        train_steps(&views, cfg, 24).field.grid.data
+    };
+    let none = run(1.0, false);
+    assert!(
+        run(0.0, true) == none,
+        "TV stopped at 0 still changed the grid"
+    );
+    let half = run(0.5, true);
+    assert!(half != none, "TV for the first half left no mark");
+    assert!(
+        half != run(1.0, true),
+        "TV for the first half is TV to the end"
+    );
+}
+
 /// The scatter splits the grid by thread count, but each vertex sums its records in the same
 /// order: one thread and three threads give the same grid.
 #[test]
