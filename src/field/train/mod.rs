@@ -480,9 +480,9 @@ impl Trainer {
         let ch = self.field.grid.channels;
         let stamp_id = self.step as u32 + 1;
         let clock = std::time::Instant::now();
-        // On a step without TV, each slab runs Adam on its vertices right after summing their gradients,
-        // while those lines are still in cache (TV reads neighbours across slabs, so it needs
-        // every slab's scatter finished first).
+        // On a step without TV, each slab runs Adam on its vertices right after summing their
+        // gradients, while those lines are still in cache (TV reads neighbours across slabs, so
+        // it needs every slab's scatter finished first).
         let fused = !self.tv_this_step();
         let adam = fused.then(|| self.adam_step());
         // The parameters leave the grid for the pass: the grid's brick index finds corners while
