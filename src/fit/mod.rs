@@ -307,7 +307,10 @@ pub struct ForwardSettings {
     /// 13 168); on every 8th, held out in 600 s fern / flower / horns 24.71 / 26.28 / 27.32 dB
     /// (SSIM 0.804 / 0.867 / 0.899) -> 24.92 / 26.37 / 27.47 (0.810 / 0.867 / 0.903), each pair
     /// the same day, at 0.6-0.75x the rays a second (it keeps more air: 8-11 samples a ray
-    /// against 5-8) (examples/results/scene_field.md, "TV on every 8th step").
+    /// against 5-8) (examples/results/scene_field.md, "TV on every 8th step"). The colour's
+    /// weight then 1e-5, the density's: held out in 600 s 24.92 / 26.53 / 27.44 dB (SSIM 0.810
+    /// / 0.873 / 0.902) -> 25.02 / 26.75 / 27.61 (0.816 / 0.878 / 0.905), each pair the same
+    /// hour, with 1.05-1.07x the steps (scene_field.md, "Colour TV ten times DVGO's").
     pub tv: (f32, f32, usize),
     /// [`TrainConfig::tv_until`] for a forward capture: TV for the first half of the schedule
     /// (the two coarser stages), none in the finest: the steps its pass took there (half its
@@ -327,7 +330,7 @@ impl Default for ForwardSettings {
             free_space_weight: 1.0,
             seed_from_depth: true,
             rate_scale_with_depth: 1.0,
-            tv: (1e-5, 1e-6, 8),
+            tv: (1e-5, 1e-5, 8),
             tv_until: 0.5,
         }
     }
