@@ -300,17 +300,18 @@ pub struct ForwardSettings {
     /// geometry").
     pub rate_scale_with_depth: f32,
     /// Total variation (density, colour, period: [`TrainConfig::tv_density`],
-    /// [`TrainConfig::tv_color`], [`TrainConfig::tv_every`]): DVGO's LLFF weights, 1e-5 and
-    /// 1e-6, on every 8th step at 8x. The gap on these captures is between the views (fern's
-    /// fit to its training views 3 dB over held out), and TV fills in between them; on every
-    /// step it cost half the steps (fern 24.62 / 0.806 in 6 912 steps against 24.74 / 0.804 in
-    /// 13 168); on every 8th, held out in 600 s fern / flower / horns 24.71 / 26.28 / 27.32 dB
-    /// (SSIM 0.804 / 0.867 / 0.899) -> 24.92 / 26.37 / 27.47 (0.810 / 0.867 / 0.903), each pair
-    /// the same day, at 0.6-0.75x the rays a second (it keeps more air: 8-11 samples a ray
-    /// against 5-8) (examples/results/scene_field.md, "TV on every 8th step"). The colour's
-    /// weight then 1e-5, the density's: held out in 600 s 24.92 / 26.53 / 27.44 dB (SSIM 0.810
-    /// / 0.873 / 0.902) -> 25.02 / 26.75 / 27.61 (0.816 / 0.878 / 0.905), each pair the same
-    /// hour, with 1.05-1.07x the steps (scene_field.md, "Colour TV ten times DVGO's").
+    /// [`TrainConfig::tv_color`], [`TrainConfig::tv_every`]): 1e-5 and 1e-5 on every 8th step at
+    /// 8x; DVGO's LLFF weights (1e-5 and 1e-6) at first, the colour's raised below. The gap on
+    /// these captures is between the views (fern's fit to its training views 3 dB over held out),
+    /// and TV fills in between them; on every step it cost half the steps (fern 24.62 / 0.806 in
+    /// 6 912 steps against 24.74 / 0.804 in 13 168); on every 8th, held out in 600 s fern / flower
+    /// / horns 24.71 / 26.28 / 27.32 dB (SSIM 0.804 / 0.867 / 0.899) -> 24.92 / 26.37 / 27.47
+    /// (0.810 / 0.867 / 0.903), each pair the same day, at 0.6-0.75x the rays a second (it keeps
+    /// more air: 8-11 samples a ray against 5-8) (examples/results/scene_field.md, "TV on every 8th
+    /// step"). The colour's weight then raised to the density's, 1e-5: held out in 600 s 24.92 /
+    /// 26.53 / 27.44 dB (SSIM 0.810 / 0.873 / 0.902) -> 25.02 / 26.75 / 27.61 (0.816 / 0.878 /
+    /// 0.905), each pair the same hour, with 1.05-1.07x the steps (scene_field.md, "Colour TV ten
+    /// times DVGO's").
     pub tv: (f32, f32, usize),
     /// [`TrainConfig::tv_until`] for a forward capture: TV for the first half of the schedule
     /// (the two coarser stages), none in the finest: the steps its pass took there (half its
